@@ -1,0 +1,4 @@
+"""Run voxrender from a checkout: ``python cli.py render ...``."""
+from voxrender.cli import main
+
+main()

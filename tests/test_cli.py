@@ -1,0 +1,216 @@
+import json
+import subprocess
+import sys
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from conftest import ROOT, data_path
+from dicom_files import write_series
+from voxrender.cli import main
+from voxrender.samples import SAMPLE_THRESHOLD, write_slices
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def assert_bad_input(result, *words):
+    """Exit 2, one line on stderr naming the problem, no traceback."""
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
+    assert "Traceback" not in result.output
+    for word in words:
+        assert word in lines[0], lines[0]
+
+
+@pytest.fixture
+def cube_folder(tmp_path):
+    values = np.full((10, 12, 14), 40, np.uint16)
+    values[2:8, 3:9, 4:10] = 1000
+    return write_slices(values, tmp_path / "cube")
+
+
+def test_render_writes_png_depth_and_stats(tmp_path, cube_folder):
+    out, depth, stats, depth_png = (tmp_path / n for n in ("c.png", "d.npy", "s.json", "d16.png"))
+    result = run("render", cube_folder, "--threshold", 500, "--alpha", 30, "--beta", 20, "--size", "64x48",
+                 "--scale", 2, "-o", out, "--depth-out", depth, "--stats-json", stats, "--depth-png", depth_png)
+    assert result.exit_code == 0, result.output
+    picture = iio.imread(out)
+    assert picture.shape == (48, 64, 3) and picture.dtype == np.uint8
+    depths = np.load(depth)
+    assert depths.dtype == np.float32 and depths.shape == (48, 64) and np.isinf(depths).any()
+    assert np.array_equal(np.isfinite(depths), picture.any(axis=2))
+    report = json.loads(stats.read_text())
+    assert report["method"] == "btf"
+    assert set(report["seconds"]) == {"load", "prepare", "render", "shade", "write", "total"}
+    assert report["stats"]["voxels_projected"] == 6 * 6 * 6
+    assert iio.imread(depth_png).dtype == np.uint16
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["c.png", "cube", "d.npy", "d16.png", "s.json"]
+
+
+def test_encode_then_render_the_vxs(tmp_path, cube_folder):
+    vxs = tmp_path / "cube.vxs"
+    result = run("encode", cube_folder, "--threshold", 500, "-o", vxs)
+    assert result.exit_code == 0 and "216 in the object" in result.output
+    direct, via = tmp_path / "a.npy", tmp_path / "b.npy"
+    assert run("render", cube_folder, "--threshold", 500, "--view", "left", "-o", tmp_path / "a.png",
+               "--depth-out", direct).exit_code == 0
+    assert run("render", vxs, "--view", "left", "-o", tmp_path / "b.png", "--depth-out", via).exit_code == 0
+    assert np.array_equal(np.load(direct), np.load(via))
+    assert_bad_input(run("render", vxs, "--threshold", 3, "-o", tmp_path / "c.png"), "already encoded")
+
+
+def test_info_reports_threshold_and_counts(cube_folder):
+    result = run("info", cube_folder, "--threshold", 500, "--json")
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.output)
+    assert summary["dimensions_xyz"] == [14, 12, 10]
+    assert summary["object_voxels"] == 216 and summary["segments"] == 36
+    assert 40 < summary["suggested_threshold_otsu"] < 1000
+    assert run("info", cube_folder).exit_code == 0
+
+
+def test_vpn_and_view_options(tmp_path, cube_folder):
+    a, b = tmp_path / "a.npy", tmp_path / "b.npy"
+    assert run("render", cube_folder, "--threshold", 500, "--vpn", "0,-1,0", "--size", 40, "-o",
+               tmp_path / "a.png", "--depth-out", a).exit_code == 0
+    assert run("render", cube_folder, "--threshold", 500, "--view", "anterior", "--size", 40, "-o",
+               tmp_path / "b.png", "--depth-out", b).exit_code == 0
+    assert np.array_equal(np.load(a), np.load(b))
+
+
+def test_samples_and_demo_match_the_golden_image(tmp_path):
+    result = run("demo", "-o", tmp_path / "demo.png", "--samples-folder", tmp_path / "samples")
+    assert result.exit_code == 0, result.output
+    assert {p.name for p in (tmp_path / "samples").iterdir()} == {"sphere", "torus", "shell", "staircase"}
+    picture = iio.imread(tmp_path / "demo.png").astype(int)
+    golden = iio.imread(ROOT / "tests" / "golden" / "demo.png").astype(int)
+    assert picture.shape == golden.shape
+    difference = np.abs(picture - golden)
+    assert difference.mean() < 0.5 and (difference <= 2).mean() > 0.995
+
+
+def test_samples_render_at_their_threshold(tmp_path):
+    assert run("samples", tmp_path, "--name", "staircase").exit_code == 0
+    result = run("info", tmp_path / "staircase", "--threshold", SAMPLE_THRESHOLD, "--json")
+    assert json.loads(result.output)["object_voxels"] == 11
+
+
+# ------------------------------------------------------------------ bad input
+
+def test_missing_path(tmp_path):
+    assert_bad_input(run("render", tmp_path / "nope", "-o", tmp_path / "o.png"), "no such file")
+
+
+def test_empty_folder(tmp_path):
+    (tmp_path / "empty").mkdir()
+    assert_bad_input(run("render", tmp_path / "empty", "-o", tmp_path / "o.png"), "empty folder")
+
+
+def test_folder_of_non_images(tmp_path):
+    folder = tmp_path / "docs"
+    folder.mkdir()
+    (folder / "notes.txt").write_text("hello")
+    assert_bad_input(run("info", folder), "--raw")
+
+
+def test_slices_of_different_sizes(tmp_path):
+    folder = tmp_path / "mixed"
+    folder.mkdir()
+    iio.imwrite(folder / "1.png", np.zeros((4, 4), np.uint8))
+    iio.imwrite(folder / "2.png", np.zeros((5, 4), np.uint8))
+    assert_bad_input(run("render", folder, "-o", tmp_path / "o.png"), "same size")
+
+
+def test_truncated_dicom_and_mixed_series(tmp_path):
+    paths = write_series(tmp_path / "cut", np.zeros((3, 8, 8)))
+    paths[2].write_bytes(paths[2].read_bytes()[:200])
+    assert_bad_input(run("render", tmp_path / "cut", "-o", tmp_path / "o.png"), "DICOM")
+    write_series(tmp_path / "two", np.zeros((2, 4, 4)), series_uid="1.2.9.1", names=["a.dcm", "b.dcm"])
+    write_series(tmp_path / "two", np.zeros((2, 4, 4)), series_uid="1.2.9.2", names=["c.dcm", "d.dcm"])
+    assert_bad_input(run("render", tmp_path / "two", "-o", tmp_path / "o.png"), "--series", "1.2.9.1")
+    assert not (tmp_path / "o.png").exists()
+
+
+def test_raw_dims_that_do_not_match(tmp_path):
+    np.zeros(100, np.uint16).tofile(tmp_path / "slice.raw")
+    assert_bad_input(run("render", tmp_path / "slice.raw", "--raw", "8x8:uint16:little", "-o",
+                         tmp_path / "o.png"), "not a multiple")
+    assert_bad_input(run("render", tmp_path / "slice.raw", "--raw", "8by8", "-o", tmp_path / "o.png"), "--raw")
+
+
+def test_threshold_that_leaves_nothing(tmp_path, cube_folder):
+    assert_bad_input(run("render", cube_folder, "--threshold", 5000, "-o", tmp_path / "o.png"),
+                     "values range from 40 to 1000")
+    assert not (tmp_path / "o.png").exists()
+
+
+def test_crop_outside_the_volume(tmp_path, cube_folder):
+    assert_bad_input(run("render", cube_folder, "--crop", "0:99,:,:", "-o", tmp_path / "o.png"),
+                     "outside", "0:14")
+
+
+def test_unwritable_outputs(tmp_path, cube_folder):
+    assert_bad_input(run("render", cube_folder, "-o", tmp_path / "no" / "o.png"), "does not exist")
+    assert_bad_input(run("render", cube_folder, "-o", tmp_path), "is a folder")
+    assert_bad_input(run("render", cube_folder, "-o", tmp_path / "o.png", "--stats-json",
+                         tmp_path / "no" / "s.json"), "does not exist")
+    assert not (tmp_path / "o.png").exists()
+
+
+@pytest.mark.parametrize("args,words", [
+    (["--size", "0"], ["--size"]),
+    (["--size", "12x"], ["--size"]),
+    (["--view", "anterior", "--alpha", "3"], ["--view", "--alpha"]),
+    (["--vpn", "0,0,0"], ["--vpn"]),
+    (["--vpn", "1,2"], ["--vpn"]),
+    (["--light", "up"], ["--light"]),
+    (["--background", "purple"], ["--background"]),
+    (["--scale", "-1"], ["--scale"]),
+    (["--method", "magic"], ["magic"]),
+    (["--threshold", "bone"], ["--threshold"]),
+    (["--spacing", "1,1"], ["--spacing"]),
+    (["--voxel", "0"], ["--voxel"]),
+    (["--min-object", "-3"], ["--min-object"]),
+    (["--alpha", "abc"], ["--alpha"]),
+])
+def test_bad_options(tmp_path, cube_folder, args, words):
+    result = run("render", cube_folder, *args, "-o", tmp_path / "o.png")
+    assert_bad_input(result, *words)
+    assert not (tmp_path / "o.png").exists()
+
+
+def test_input_is_never_modified(tmp_path, cube_folder):
+    before = {p.name: p.read_bytes() for p in cube_folder.iterdir()}
+    assert run("render", cube_folder, "--threshold", 500, "-o", tmp_path / "o.png").exit_code == 0
+    assert {p.name: p.read_bytes() for p in cube_folder.iterdir()} == before
+
+
+def test_console_script_errors_are_one_line(tmp_path):
+    """The real entry point, in a subprocess: one line on stderr, status 2, nothing on stdout."""
+    done = subprocess.run([sys.executable, str(ROOT / "cli.py"), "render", str(tmp_path / "nope"), "-o",
+                           str(tmp_path / "o.png")], capture_output=True, text=True, cwd=ROOT)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.count("\n") == 1 and done.stderr.startswith("error: no such file")
+    done = subprocess.run([sys.executable, str(ROOT / "cli.py"), "render"], capture_output=True, text=True)
+    assert done.returncode == 2 and done.stderr.count("\n") == 1 and "INPUT" in done.stderr
+
+
+# ------------------------------------------------------------------ the issue's commands on real data
+
+def test_issue_commands_on_real_data(tmp_path):
+    vhf, headsq = data_path("vhf_head"), data_path("headsq")
+    for args in (["render", vhf, "--threshold", 300, "--size", 128, "-o", tmp_path / "skull.png"],
+                 ["render", vhf, "--threshold", -300, "--view", "anterior", "--size", 128, "-o", tmp_path / "f.png"],
+                 ["render", headsq, "--raw", "64x64:uint16:little", "--spacing", "3.2,3.2,1.5", "--threshold",
+                  1150, "--size", 128, "-o", tmp_path / "head.png"],
+                 ["info", vhf],
+                 ["encode", vhf, "--threshold", 300, "-o", tmp_path / "skull.vxs"],
+                 ["render", tmp_path / "skull.vxs", "--size", 128, "-o", tmp_path / "skull2.png"]):
+        result = run(*args)
+        assert result.exit_code == 0, (args, result.output)
+    assert np.array_equal(iio.imread(tmp_path / "skull.png"), iio.imread(tmp_path / "skull2.png"))

@@ -1,0 +1,256 @@
+import gzip
+import zlib
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+
+from conftest import data_path
+from dicom_files import write_series
+from voxrender import io
+from voxrender.errors import InputError
+
+
+@pytest.fixture
+def stack():
+    rng = np.random.default_rng(0)
+    return rng.integers(0, 3000, size=(5, 6, 7)).astype(np.uint16)
+
+
+# ------------------------------------------------------------------ image folders
+
+def test_image_folder_in_natural_order(tmp_path, stack):
+    for z, plane in enumerate(stack):
+        iio.imwrite(tmp_path / f"s.{z + 1}.png", plane)  # s.10 would sort before s.2 as text
+    (tmp_path / "README.txt").write_text("not a slice")
+    volume = io.read_volume(tmp_path)
+    assert volume.meta["format"] == "images"
+    assert np.array_equal(volume.values, stack)
+
+
+def test_natural_key_orders_numbers():
+    names = [f"quarter.{i}" for i in (10, 2, 1, 93, 11)]
+    assert sorted(names, key=io.natural_key) == ["quarter.1", "quarter.2", "quarter.10", "quarter.11", "quarter.93"]
+
+
+@pytest.mark.parametrize("suffix", [".tif", ".bmp"])
+def test_other_image_types(tmp_path, suffix):
+    planes = np.random.default_rng(1).integers(0, 255, size=(3, 8, 9)).astype(np.uint8)
+    for z, plane in enumerate(planes):
+        iio.imwrite(tmp_path / f"{z}{suffix}", plane)
+    assert np.array_equal(io.read_volume(tmp_path).values, planes)
+
+
+def test_colour_slices_become_grey(tmp_path):
+    grey = np.random.default_rng(2).integers(0, 255, size=(2, 4, 5)).astype(np.uint8)
+    for z, plane in enumerate(grey):
+        iio.imwrite(tmp_path / f"{z}.png", np.stack([plane] * 3, axis=-1))
+    assert np.array_equal(io.read_volume(tmp_path).values, grey)
+
+
+def test_slices_of_different_sizes(tmp_path):
+    iio.imwrite(tmp_path / "1.png", np.zeros((4, 4), np.uint8))
+    iio.imwrite(tmp_path / "2.png", np.zeros((4, 5), np.uint8))
+    with pytest.raises(InputError, match="same size"):
+        io.read_volume(tmp_path)
+
+
+def test_corrupt_image(tmp_path):
+    iio.imwrite(tmp_path / "1.png", np.zeros((4, 4), np.uint8))
+    (tmp_path / "2.png").write_bytes(b"\x89PNG garbage")
+    with pytest.raises(InputError, match="cannot read image"):
+        io.read_volume(tmp_path)
+
+
+# ------------------------------------------------------------------ DICOM
+
+def test_dicom_series_sorted_by_position_and_rescaled(tmp_path):
+    stored = np.random.default_rng(3).integers(0, 2000, size=(6, 4, 5))
+    write_series(tmp_path, stored, spacing=(0.5, 0.6, 2.0))
+    volume = io.read_volume(tmp_path)
+    assert volume.meta["format"] == "dicom" and volume.meta["sorted_by"] == "ImagePositionPatient"
+    assert np.array_equal(volume.values, stored - 1024)
+    assert volume.spacing == (0.5, 0.6, 2.0)
+    assert volume.meta["units"] == "HU"
+
+
+def test_dicom_falls_back_to_instance_number(tmp_path):
+    stored = np.random.default_rng(4).integers(0, 2000, size=(4, 3, 3))
+    write_series(tmp_path, stored, positions=False)
+    volume = io.read_volume(tmp_path)
+    assert volume.meta["sorted_by"] == "InstanceNumber"
+    assert np.array_equal(volume.values, stored - 1024)
+
+
+def test_dicom_fractional_rescale_gives_float(tmp_path):
+    stored = np.arange(2 * 3 * 3).reshape(2, 3, 3)
+    write_series(tmp_path, stored, slope=0.5, intercept=1.25)
+    values = io.read_volume(tmp_path).values
+    assert values.dtype == np.float32 and np.allclose(values, stored * 0.5 + 1.25)
+
+
+def test_two_series_need_a_choice(tmp_path):
+    write_series(tmp_path, np.zeros((2, 3, 3)), series_uid="1.2.3.1", names=["a1.dcm", "a2.dcm"])
+    write_series(tmp_path, np.ones((3, 3, 3)), series_uid="1.2.3.2", names=["b1.dcm", "b2.dcm", "b3.dcm"])
+    with pytest.raises(InputError, match="--series") as info:
+        io.read_volume(tmp_path)
+    assert "1.2.3.1 (2 slices" in str(info.value) and "1.2.3.2 (3 slices" in str(info.value)
+    assert io.read_volume(tmp_path, series="1.2.3.2").shape == (3, 3, 3)
+    with pytest.raises(InputError, match="no series 9.9"):
+        io.read_volume(tmp_path, series="9.9")
+
+
+def test_truncated_dicom(tmp_path):
+    paths = write_series(tmp_path, np.zeros((3, 8, 8)))
+    paths[1].write_bytes(paths[1].read_bytes()[:-60])
+    with pytest.raises(InputError, match="DICOM file"):
+        io.read_volume(tmp_path)
+
+
+def test_corrupt_dicom_header(tmp_path):
+    paths = write_series(tmp_path, np.zeros((3, 8, 8)))
+    paths[0].write_bytes(b"\0" * 128 + b"DICM" + b"\xff" * 50)
+    with pytest.raises(InputError, match="DICOM file"):
+        io.read_volume(tmp_path)
+
+
+def test_one_dicom_file_points_to_its_folder(tmp_path):
+    paths = write_series(tmp_path, np.zeros((2, 4, 4)))
+    with pytest.raises(InputError, match="folder that holds the whole series"):
+        io.read_volume(paths[0])
+
+
+def test_vhf_head_dicom():
+    volume = io.read_volume(data_path("vhf_head"))
+    assert volume.shape == (234, 512, 512) and volume.spacing == (1.0, 1.0, 1.0)
+    assert volume.meta["units"] == "HU" and volume.values.dtype == np.int16
+    assert volume.values.min() <= -1000 and volume.values.max() > 1000
+    # Slices run from the neck up: the top slice holds less bone than the middle ones.
+    bone = (volume.values >= 300).sum(axis=(1, 2))
+    assert bone[-1] < bone[len(bone) // 2]
+
+
+# ------------------------------------------------------------------ MetaImage, raw, npy, tiff
+
+def _write_mhd(path, values, compressed=False, local=False, msb=False):
+    dtype = values.dtype.newbyteorder(">" if msb else "<")
+    payload = values.astype(dtype).tobytes()
+    if compressed:
+        payload = zlib.compress(payload)
+    nz, ny, nx = values.shape
+    header = (f"ObjectType = Image\nNDims = 3\nDimSize = {nx} {ny} {nz}\nElementSpacing = 0.5 0.7 2\n"
+              f"ElementType = MET_SHORT\nElementByteOrderMSB = {msb}\nCompressedData = {compressed}\n")
+    if compressed:
+        header += f"CompressedDataSize = {len(payload)}\n"
+    if local:
+        path.write_bytes((header + "ElementDataFile = LOCAL\n").encode() + payload)
+    else:
+        path.with_suffix(".raw").write_bytes(payload)
+        path.write_text(header + f"ElementDataFile = {path.with_suffix('.raw').name}\n")
+
+
+@pytest.mark.parametrize("compressed,local,msb", [(False, False, False), (True, False, False),
+                                                  (False, True, True), (True, True, False)])
+def test_metaimage(tmp_path, compressed, local, msb):
+    values = np.random.default_rng(5).integers(-1000, 1000, size=(3, 4, 5)).astype(np.int16)
+    path = tmp_path / ("v.mha" if local else "v.mhd")
+    _write_mhd(path, values, compressed, local, msb)
+    volume = io.read_volume(path)
+    assert np.array_equal(volume.values, values) and volume.spacing == (0.5, 0.7, 2.0)
+
+
+def test_truncated_metaimage(tmp_path):
+    values = np.zeros((3, 4, 5), np.int16)
+    _write_mhd(tmp_path / "v.mhd", values)
+    (tmp_path / "v.raw").write_bytes(b"\0" * 10)
+    with pytest.raises(InputError, match="truncated"):
+        io.read_volume(tmp_path / "v.mhd")
+
+
+def test_headmr_metaimage():
+    volume = io.read_volume(data_path("headmr") / "HeadMRVolume.mhd")
+    assert volume.shape == (42, 62, 48) and volume.spacing == (4.0, 4.0, 4.0)
+    assert volume.values.dtype == np.uint8
+
+
+def test_raw_folder_and_single_file(tmp_path, stack):
+    folder = tmp_path / "slices"
+    folder.mkdir()
+    for z, plane in enumerate(stack):
+        plane.astype(">u2").tofile(folder / f"q.{z + 1}")
+    (folder / "q.nhdr").write_text("NRRD0004\n")  # headers beside raw slices are not slices
+    volume = io.read_volume(folder, raw="7x6:uint16:big")
+    assert np.array_equal(volume.values, stack)
+    stack.astype("<u2").tofile(tmp_path / "all.raw")
+    assert np.array_equal(io.read_volume(tmp_path / "all.raw", raw="7x6:uint16:little").values, stack)
+
+
+def test_raw_size_mismatch(tmp_path, stack):
+    stack.astype("<u2").tofile(tmp_path / "all.raw")
+    with pytest.raises(InputError, match="not a multiple"):
+        io.read_volume(tmp_path / "all.raw", raw="8x6:uint16:little")
+
+
+@pytest.mark.parametrize("spec", ["64x64", "64:uint16", "0x4:uint8", "4x4:complex64", "4x4:uint16:middle",
+                                  "4x4:nonsense"])
+def test_raw_spec_errors(spec):
+    with pytest.raises(InputError, match="--raw"):
+        io.parse_raw_spec(spec)
+
+
+def test_headsq_raw():
+    volume = io.read_volume(data_path("headsq"), raw="64x64:uint16:little", spacing=(3.2, 3.2, 1.5))
+    assert volume.shape == (93, 64, 64) and volume.spacing == (3.2, 3.2, 1.5)
+    assert 3000 < volume.values.max() < 5000
+
+
+def test_npy_and_multipage_tiff(tmp_path, stack):
+    np.save(tmp_path / "v.npy", stack)
+    assert np.array_equal(io.read_volume(tmp_path / "v.npy").values, stack)
+    iio.imwrite(tmp_path / "v.tif", stack)
+    assert np.array_equal(io.read_volume(tmp_path / "v.tif").values, stack)
+    np.save(tmp_path / "flat.npy", stack[0])
+    with pytest.raises(InputError, match="3-D"):
+        io.read_volume(tmp_path / "flat.npy")
+
+
+def test_spacing_override(tmp_path, stack):
+    np.save(tmp_path / "v.npy", stack)
+    assert io.read_volume(tmp_path / "v.npy", spacing=(1, 2, 3)).spacing == (1.0, 2.0, 3.0)
+    with pytest.raises(InputError):
+        io.read_volume(tmp_path / "v.npy", spacing=(1, 0, 3))
+
+
+# ------------------------------------------------------------------ paths
+
+def test_missing_and_empty_and_unknown(tmp_path):
+    with pytest.raises(InputError, match="no such file"):
+        io.read_volume(tmp_path / "nope")
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(InputError, match="empty folder"):
+        io.read_volume(empty)
+    notes = tmp_path / "notes"
+    notes.mkdir()
+    (notes / "a.txt").write_text("hello")
+    with pytest.raises(InputError, match="--raw"):
+        io.read_volume(notes)
+    (tmp_path / "thing.xyz").write_text("?")
+    with pytest.raises(InputError, match="cannot tell the format"):
+        io.read_volume(tmp_path / "thing.xyz")
+
+
+def test_atomic_output_leaves_nothing_on_failure(tmp_path):
+    target = tmp_path / "out.png"
+    with pytest.raises(RuntimeError):
+        with io.atomic_output(target) as tmp:
+            tmp.write_bytes(b"half")
+            raise RuntimeError("boom")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_check_writable(tmp_path):
+    with pytest.raises(InputError, match="does not exist"):
+        io.check_writable(tmp_path / "no" / "out.png")
+    with pytest.raises(InputError, match="is a folder"):
+        io.check_writable(tmp_path)

@@ -1,0 +1,84 @@
+import numpy as np
+import pytest
+
+from voxrender import prep
+from voxrender.errors import InputError
+from voxrender.io import Volume
+
+
+def test_crop_is_half_open_in_xyz_order():
+    values = np.arange(4 * 5 * 6).reshape(4, 5, 6)
+    assert np.array_equal(prep.crop(values, "1:3,2:,:2"), values[:2, 2:, 1:3])
+
+
+@pytest.mark.parametrize("spec", ["0:7,:,:", "3:2,:,:", "1:2,:", "a:b,:,:", "5,:,:", "-1:3,:,:"])
+def test_crop_rejects_bad_ranges(spec):
+    with pytest.raises(InputError):
+        prep.parse_crop(spec, (4, 5, 6))
+
+
+def test_resample_keeps_grid_endpoints_and_is_linear():
+    # A linear ramp along every axis stays exactly linear after trilinear resampling.
+    z, y, x = np.mgrid[:5, :4, :6].astype(float)
+    values = 2 * x * 0.8 + 3 * y * 0.8 + 5 * z * 2.0  # in mm along each axis
+    out = prep.resample(values, (0.8, 0.8, 2.0), 0.5)
+    assert out.shape == prep.resampled_shape(values.shape, (0.8, 0.8, 2.0), 0.5) == (17, 5, 9)
+    zz, yy, xx = np.mgrid[:17, :5, :9] * 0.5
+    assert np.allclose(out, 2 * xx + 3 * yy + 5 * zz, atol=1e-4)
+
+
+def test_paper_slice_count():
+    # The paper's skull: 93 slices 1.0 mm apart, pixels of 0.64 mm, became 144 slices.
+    assert prep.resampled_shape((93, 2, 2), (0.64, 0.64, 1.0), 0.64)[0] == 144
+
+
+def test_binarize_threshold_is_inclusive():
+    values = np.array([[[99, 100, 101]]])
+    mask, info = prep.binarize(Volume(values), 100)
+    assert mask.tolist() == [[[False, True, True]]] and info["threshold"] == 100
+
+
+def test_binarize_resamples_to_cubes():
+    values = np.zeros((4, 6, 6))
+    values[1:3, 2:4, 2:4] = 1000
+    mask, info = prep.binarize(Volume(values, (1.0, 1.0, 2.0)), 600)  # midway samples are 500
+    assert mask.shape == (7, 6, 6) and info["spacing"] == (1.0, 1.0, 1.0)
+    assert mask[:, 2:4, 2:4].any(axis=(1, 2)).tolist() == [False, False, True, True, True, False, False]
+
+
+def test_binarize_no_resample_keeps_grid():
+    values = np.zeros((4, 6, 6))
+    mask, _ = prep.binarize(Volume(values + 1, (1.0, 1.0, 2.0)), 0, resample=False)
+    assert mask.shape == (4, 6, 6)
+
+
+def test_otsu_splits_two_populations():
+    rng = np.random.default_rng(0)
+    values = np.concatenate([rng.normal(0, 10, 5000), rng.normal(1000, 10, 5000)])
+    assert 100 < prep.otsu_threshold(values) < 900
+    mask, info = prep.binarize(Volume(values.reshape(10, 10, 100)), "otsu")
+    assert mask.sum() == (values >= info["threshold"]).sum() == 5000
+
+
+def test_min_object_drops_specks():
+    values = np.zeros((10, 10, 10))
+    values[1:5, 1:5, 1:5] = 1
+    values[8, 8, 8] = 1
+    mask, _ = prep.binarize(Volume(values), 0.5, min_object=2)
+    assert mask.sum() == 64
+
+
+def test_threshold_that_leaves_nothing_names_the_range():
+    with pytest.raises(InputError, match="values range from -5 to 7"):
+        prep.binarize(Volume(np.array([[[-5, 7]]])), 100)
+
+
+@pytest.mark.parametrize("text", ["abc", "", "inf", "nan"])
+def test_parse_threshold_rejects(text):
+    with pytest.raises(InputError):
+        prep.parse_threshold(text)
+
+
+def test_bad_voxel_size():
+    with pytest.raises(InputError):
+        prep.binarize(Volume(np.ones((2, 2, 2)), (1, 1, 2)), 0, voxel=-1)

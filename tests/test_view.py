@@ -1,0 +1,109 @@
+import numpy as np
+import pytest
+
+from reference import rotation
+from voxrender.errors import InputError
+from voxrender.view import (PRESETS, View, angles_from_matrix, angles_from_vpn, fit_scale, pixel_centres,
+                            rotation_matrix, vpn_from_angles)
+
+
+def test_rotation_matrix_is_the_papers_product():
+    for angles in [(10, 20, 30), (-45, 15, 0), (60, 120, -70)]:
+        assert np.allclose(rotation_matrix(*angles), rotation(*angles))
+
+
+def test_theorem_1_rows_stay_parallel_to_scanlines():
+    # After alpha and beta, an object row (along x) keeps a constant Y'.
+    r = rotation_matrix(37, -71, 0)
+    assert abs(r[1, 0]) < 1e-12
+
+
+def test_theorem_2_round_trip_on_random_rotations():
+    rng = np.random.default_rng(2)
+    for _ in range(500):
+        q = rng.normal(size=4)
+        q /= np.linalg.norm(q)
+        w, x, y, z = q
+        t = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                      [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+        alpha, beta, gamma = angles_from_matrix(t)
+        assert -90 <= beta <= 90
+        assert np.allclose(rotation_matrix(alpha, beta, gamma), t, atol=1e-9)
+
+
+@pytest.mark.parametrize("beta", [90.0, -90.0])
+def test_theorem_2_gimbal_lock(beta):
+    for alpha, gamma in [(0, 0), (30, 10), (-120, 75), (179, -179)]:
+        t = rotation_matrix(alpha, beta, gamma)
+        a, b, g = angles_from_matrix(t)
+        assert b == beta and g == 0.0
+        assert np.allclose(rotation_matrix(a, b, g), t, atol=1e-9)
+
+
+def test_angles_from_matrix_rejects_non_rotations():
+    with pytest.raises(InputError):
+        angles_from_matrix(np.diag([1, 1, -1]))
+
+
+def test_vpn_round_trip():
+    rng = np.random.default_rng(3)
+    for vpn in list(rng.normal(size=(200, 3))) + [np.array(v, float) for v in
+                                                  [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, 0, 1), (1, -2, 1)]]:
+        angles = angles_from_vpn(vpn)
+        assert angles[2] == 0.0
+        assert np.allclose(vpn_from_angles(*angles), vpn / np.linalg.norm(vpn), atol=1e-9)
+
+
+def test_vpn_rejects_zero():
+    with pytest.raises(InputError):
+        angles_from_vpn((0, 0, 0))
+
+
+# The viewer of each preset, in LPS object axes (x to the patient's left, y to the back, z to the head),
+# and which object axis points up (-Y') in the picture.
+PRESET_GEOMETRY = {
+    "anterior": ((0, -1, 0), (0, 0, 1)),
+    "posterior": ((0, 1, 0), (0, 0, 1)),
+    "left": ((1, 0, 0), (0, 0, 1)),
+    "right": ((-1, 0, 0), (0, 0, 1)),
+    "superior": ((0, 0, 1), (0, -1, 0)),
+    "inferior": ((0, 0, -1), (0, -1, 0)),
+}
+
+
+@pytest.mark.parametrize("name", sorted(PRESETS))
+def test_presets_put_the_viewer_where_named(name):
+    toward_viewer, up = PRESET_GEOMETRY[name]
+    r = View.preset(name).matrix
+    assert np.allclose(-r[2], toward_viewer, atol=1e-12)
+    assert np.allclose(-r[1], up, atol=1e-12)
+    assert PRESETS[name][2] == 0.0  # no preset needs a pre-image rotation
+
+
+def test_fit_scale_fits_every_rotation():
+    shape = (20, 30, 40)
+    view = View(alpha=33, beta=71, gamma=12, size=(100, 80)).fitted(shape)
+    corners = np.array(np.meshgrid([-0.5, 39.5], [-0.5, 29.5], [-0.5, 19.5])).reshape(3, -1).T
+    centre = np.array([19.5, 14.5, 9.5])
+    for angles in [(0, 0, 0), (33, 71, 12), (45, 45, 45), (90, 35.26, 45)]:
+        projected = (rotation_matrix(*angles) @ (corners - centre).T)[:2] * view.scale
+        assert np.all(np.abs(projected[0]) <= 40 + 1e-9) and np.all(np.abs(projected[1]) <= 50 + 1e-9)
+    assert view.scale == fit_scale(shape, (100, 80))
+
+
+def test_pixel_centres_follow_the_contract():
+    xs, ys = pixel_centres(View(size=(3, 4), scale=2.0))
+    assert xs.tolist() == [-0.75, -0.25, 0.25, 0.75]
+    assert ys.tolist() == [-0.5, 0.0, 0.5]
+
+
+def test_view_rejects_bad_values():
+    with pytest.raises(InputError):
+        View(scale=0)
+    with pytest.raises(InputError):
+        View(size=(0, 5))
+    with pytest.raises(InputError):
+        View(alpha=float("nan"))
+    with pytest.raises(InputError):
+        View.preset("sideways")

@@ -1,0 +1,324 @@
+"""The ``voxrender`` command line: it parses, calls the library and reports.
+
+Bad input ends with one line on stderr and exit status 2; a bug in voxrender
+ends with one line and exit status 1 (``VOXRENDER_DEBUG=1`` shows the traceback).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import click
+import numpy as np
+
+from . import __version__, io, prep, samples, segments, shade
+from .errors import InputError
+from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
+from .render import METHODS, render
+from .view import PRESETS, View, angles_from_vpn
+
+
+def progress(iterable, length=None, label=None):
+    """A click progress bar on stderr when it is a terminal; the bare iterable otherwise."""
+    if not sys.stderr.isatty():
+        return iterable
+    return _bar(iterable, length, label)
+
+
+def _bar(iterable, length, label):
+    with click.progressbar(iterable, length=length, label=label, file=sys.stderr) as bar:
+        yield from bar
+
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    click.echo(f"warning: {message}", err=True)
+
+
+# ---------------------------------------------------------------- option parsers
+
+def _parse_size(text):
+    try:
+        parts = [int(p) for p in str(text).lower().split("x")]
+    except ValueError:
+        parts = []
+    if len(parts) == 1:
+        parts = parts * 2
+    if len(parts) != 2 or min(parts) < 1 or max(parts) > 32768:
+        raise InputError(f"--size {text!r} must be N or WxH in pixels, e.g. 512 or 640x480")
+    width, height = parts
+    return height, width
+
+
+def _view_from(options):
+    angles_given = any(options[k] is not None for k in ("alpha", "beta", "gamma"))
+    chosen = [name for name, given in (("--view", options["view"]), ("--vpn", options["vpn"]),
+                                       ("--alpha/--beta/--gamma", angles_given)) if given]
+    if len(chosen) > 1:
+        raise InputError(f"give one of {' and '.join(chosen)}, not both")
+    size = _parse_size(options["size"])
+    if options["view"]:
+        alpha, beta, gamma = PRESETS[options["view"]]
+    elif options["vpn"]:
+        alpha, beta, gamma = angles_from_vpn(shade.parse_vector(options["vpn"], "--vpn"))
+    else:
+        alpha, beta, gamma = (options[k] or 0.0 for k in ("alpha", "beta", "gamma"))
+    return View(alpha, beta, gamma, size, options["scale"])
+
+
+def _read_options(options):
+    spacing = shade.parse_vector(options["spacing"], "--spacing") if options["spacing"] else None
+    if spacing is not None:
+        spacing = io.check_spacing(spacing, "--spacing")
+    return ReadOptions(options["format"], options["raw"], spacing, options["series"])
+
+
+def _prep_options(options):
+    if options["min_object"] < 0:
+        raise InputError("--min-object must be 0 or more voxels")
+    threshold = "otsu" if options["threshold"] is None else prep.parse_threshold(options["threshold"])
+    return PrepOptions(threshold, options["crop"], options["voxel"],
+                       options["resample"], options["min_object"])
+
+
+def _check_vxs_options(path, options):
+    """A .vxs file is already thresholded: refuse options that would silently do nothing."""
+    if not is_segments_file(path):
+        return
+    given = [f"--{name.replace('_', '-')}" for name in ("threshold", "crop", "voxel", "raw", "spacing", "series")
+             if options.get(name) is not None]
+    if given:
+        raise InputError(f"{path} is already encoded, so {', '.join(given)} cannot apply; "
+                         "give the slice stack instead")
+
+
+# ---------------------------------------------------------------- shared options
+
+def _input_options(command):
+    decorators = [
+        click.argument("input_path", metavar="INPUT", type=click.Path(path_type=Path)),
+        click.option("--format", "format", default="auto", show_default=True,
+                     type=click.Choice(io.FORMATS), help="Input format (auto-detected)."),
+        click.option("--raw", metavar="WxH:DTYPE:ENDIAN", help="Headerless slices, e.g. 64x64:uint16:little."),
+        click.option("--spacing", metavar="X,Y,Z", help="Voxel spacing in mm; overrides the files."),
+        click.option("--series", metavar="UID", help="DICOM SeriesInstanceUID, when a folder holds several."),
+    ]
+    for decorator in reversed(decorators):
+        command = decorator(command)
+    return command
+
+
+def _prep_options_decorator(command):
+    decorators = [
+        click.option("--threshold", metavar="VALUE|otsu",
+                     help="Object is value >= VALUE (stored units, HU for CT); default: otsu."),
+        click.option("--crop", metavar="X0:X1,Y0:Y1,Z0:Z1", help="Subregion in input voxel indices."),
+        click.option("--resample/--no-resample", default=True, show_default=True,
+                     help="Resample to cubic voxels from the spacing."),
+        click.option("--voxel", type=float, metavar="MM", help="Cubic voxel size (default: smallest spacing)."),
+        click.option("--min-object", type=int, default=0, metavar="N", help="Drop connected specks under N voxels."),
+    ]
+    for decorator in reversed(decorators):
+        command = decorator(command)
+    return command
+
+
+# ---------------------------------------------------------------- commands
+
+class _Group(click.Group):
+    def main(self, args=None, prog_name=None, **extra):
+        warnings.showwarning = _one_line_warning
+        try:
+            return super().main(args, prog_name, standalone_mode=False, **extra)
+        except click.exceptions.Exit as done:
+            sys.exit(done.exit_code)
+        except click.exceptions.Abort:
+            click.echo("aborted", err=True)
+            sys.exit(130)
+        except click.ClickException as exc:
+            hint = f" (see '{exc.ctx.command_path} --help')" if getattr(exc, "ctx", None) else ""
+            click.echo(f"error: {exc.format_message()}{hint}", err=True)
+            sys.exit(2)
+        except InputError as exc:
+            click.echo(f"error: {exc}", err=True)
+            sys.exit(2)
+        except KeyboardInterrupt:
+            click.echo("interrupted", err=True)
+            sys.exit(130)
+        except MemoryError:
+            click.echo("error: out of memory; --crop a subregion or choose a larger --voxel", err=True)
+            sys.exit(2)
+        except Exception as exc:  # a bug: one line unless debugging
+            if os.environ.get("VOXRENDER_DEBUG"):
+                raise
+            click.echo(f"internal error: {type(exc).__name__}: {exc} (VOXRENDER_DEBUG=1 shows the traceback)",
+                       err=True)
+            sys.exit(1)
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="voxrender")
+def main():
+    """Shaded pictures of the object inside a stack of CT-like slices."""
+
+
+@main.command("render")
+@_input_options
+@_prep_options_decorator
+@click.option("-o", "--output", required=True, type=click.Path(path_type=Path), help="PNG to write.")
+@click.option("--method", default="btf", show_default=True, type=click.Choice(sorted(METHODS)),
+              help="Rendering algorithm.")
+@click.option("--view", type=click.Choice(list(PRESETS)), help="A named view (DICOM axial stacks).")
+@click.option("--alpha", type=float, help="Rotation about X1 in degrees.")
+@click.option("--beta", type=float, help="Rotation about Y1 in degrees.")
+@click.option("--gamma", type=float, help="Rotation about Z1 (the view axis) in degrees.")
+@click.option("--vpn", metavar="I,J,K", help="View plane normal (object x,y,z toward the viewer).")
+@click.option("--size", default="512", show_default=True, metavar="N|WxH", help="Image size in pixels.")
+@click.option("--scale", type=float, help="Pixels per voxel (default: fit the volume at any rotation).")
+@click.option("--shading", default="gradient", show_default=True, type=click.Choice(["gradient", "depth"]))
+@click.option("--light", default="0,0,-1", show_default=True, metavar="X,Y,Z",
+              help="Direction toward the light in image space (X right, Y down, Z away).")
+@click.option("--background", default="black", show_default=True, metavar="GREY|R,G,B")
+@click.option("--supersample", default=2, show_default=True, type=click.IntRange(1, 8),
+              help="Pre-image supersampling for methods that apply gamma by rotating the picture.")
+@click.option("--depth-out", type=click.Path(path_type=Path), metavar="FILE.npy",
+              help="Save the depth image (float32, +inf background).")
+@click.option("--depth-png", type=click.Path(path_type=Path), metavar="FILE.png",
+              help="Save depth as a 16-bit PNG (near bright, background 0).")
+@click.option("--stats-json", type=click.Path(path_type=Path), metavar="FILE",
+              help="Save timings and the renderer's statistics as JSON.")
+def render_command(input_path, output, method, shading, light, background, supersample, depth_out, depth_png,
+                   stats_json, **options):
+    """Render INPUT (a slice folder, volume file or .vxs) to a shaded PNG."""
+    started = time.perf_counter()
+    _check_vxs_options(input_path, options)
+    view = _view_from(options)
+    light = shade.parse_vector(light, "--light")
+    background = shade.parse_colour(background)
+    for path in (output, depth_out, depth_png, stats_json):
+        if path is not None:
+            io.check_writable(path)
+    loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
+    image = render(loaded.segments, view, method, progress, supersample)
+    shaded_at = time.perf_counter()
+    rgb = shade.shade(image.depth, shading, image.view.scale, light, background=background)
+    written_at = time.perf_counter()
+    io.write_png(output, rgb)
+    if depth_out is not None:
+        with io.atomic_output(depth_out) as tmp, open(tmp, "wb") as f:
+            np.save(f, image.depth)
+    if depth_png is not None:
+        io.write_png(depth_png, shade.depth_to_uint16(image.depth))
+    done = time.perf_counter()
+    seconds = dict(loaded.seconds, render=image.seconds, shade=written_at - shaded_at, write=done - written_at,
+                   total=done - started)
+    if stats_json is not None:
+        report = {"method": method, "seconds": seconds, "stats": image.stats,
+                  "view": {"alpha": image.view.alpha, "beta": image.view.beta, "gamma": image.view.gamma,
+                           "scale": image.view.scale, "size": list(image.view.size)},
+                  "object": {"shape": list(loaded.segments.shape), "voxels": loaded.segments.voxel_count,
+                             "segments": loaded.segments.segment_count, **loaded.segments.meta},
+                  "covered_pixels": int(image.coverage.sum())}
+        with io.atomic_output(stats_json) as tmp:
+            tmp.write_text(json.dumps(report, indent=2, default=float))
+    if not image.coverage.any():
+        click.echo("warning: the object falls outside the picture; try a smaller --scale", err=True)
+
+
+@main.command("encode")
+@_input_options
+@_prep_options_decorator
+@click.option("-o", "--output", required=True, type=click.Path(path_type=Path), help=".vxs file to write.")
+def encode_command(input_path, output, **options):
+    """Threshold INPUT and save its run-length segments as a .vxs file."""
+    if is_segments_file(input_path):
+        raise InputError(f"{input_path} is already encoded")
+    if output.suffix.lower() != ".vxs":
+        raise InputError(f"the output {output} must end in .vxs")
+    io.check_writable(output)
+    loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
+    segments.save(loaded.segments, output)
+    s = loaded.segments
+    nz, ny, nx = s.shape
+    click.echo(f"{output}: {nx}x{ny}x{nz} voxels, {s.voxel_count} in the object, {s.segment_count} segments, "
+               f"threshold {s.meta['threshold']:g}")
+
+
+@main.command("info")
+@_input_options
+@_prep_options_decorator
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+def info_command(input_path, as_json, **options):
+    """Describe INPUT: size, spacing, values, a suggested threshold, the object at a threshold."""
+    if is_segments_file(input_path):
+        _check_vxs_options(input_path, options)
+        s = segments.load(input_path)
+        summary = {"input": str(input_path), "format": "vxs", "dimensions_xyz": list(s.shape[::-1]),
+                   "spacing_mm": list(s.spacing), "object_voxels": s.voxel_count, "segments": s.segment_count,
+                   **{k: v for k, v in s.meta.items() if k != "source"}}
+    else:
+        volume = _read_options(options).read(input_path, progress)
+        summary = _describe(input_path, volume, _prep_options(options))
+    if as_json:
+        click.echo(json.dumps(summary, indent=2, default=float))
+        return
+    for key, value in summary.items():
+        click.echo(f"{key.replace('_', ' ')}: {value}")
+
+
+def _describe(path, volume, prepare):
+    values = prep.crop(volume.values, prepare.crop)
+    low, high = float(np.min(values)), float(np.max(values))
+    suggested = prep.otsu_threshold(values) if low < high else low
+    percentiles = np.percentile(values[::max(1, values.shape[0] // 64)], [1, 5, 25, 50, 75, 95, 99])
+    summary = {"input": str(path), "format": volume.meta.get("format"),
+               "dimensions_xyz": list(volume.shape[::-1]), "spacing_mm": list(volume.spacing),
+               "spacing_from": volume.meta.get("spacing_from"), "dtype": str(volume.values.dtype),
+               "units": volume.meta.get("units", "stored values"), "value_range": [low, high],
+               "percentiles_1_5_25_50_75_95_99": [round(float(p), 2) for p in percentiles],
+               "suggested_threshold_otsu": round(suggested, 2)}
+    for key in ("modality", "series", "description", "sorted_by"):
+        if volume.meta.get(key):
+            summary[key] = volume.meta[key]
+    threshold = suggested if prepare.threshold == "otsu" else prepare.threshold
+    mask, info = prep.binarize(volume, threshold, crop_spec=prepare.crop, voxel=prepare.voxel,
+                               resample=prepare.resample, min_object=prepare.min_object)
+    encoded = segments.encode(mask)
+    summary.update({"threshold": threshold, "object_grid_xyz": list(mask.shape[::-1]),
+                    "object_voxel_mm": info["voxel"], "object_voxels": encoded.voxel_count,
+                    "object_fraction": round(encoded.voxel_count / mask.size, 6),
+                    "segments": encoded.segment_count})
+    return summary
+
+
+@main.command("samples")
+@click.argument("folder", default="samples", type=click.Path(path_type=Path))
+@click.option("--name", "names", multiple=True, type=click.Choice(list(samples.SAMPLES)),
+              help="Which samples (default: all).")
+def samples_command(folder, names):
+    """Write small synthetic CT-like slice folders (threshold 500) into FOLDER."""
+    if folder.exists() and not folder.is_dir():
+        raise InputError(f"{folder} is a file; give a folder for the samples")
+    folder.mkdir(parents=True, exist_ok=True)
+    for path in samples.write_samples(folder, names or None):
+        click.echo(f"{path}: {len(list(path.glob('*.png')))} slices")
+
+
+@main.command("demo")
+@click.option("-o", "--output", default="demo.png", show_default=True, type=click.Path(path_type=Path))
+@click.option("--samples-folder", default="samples", show_default=True, type=click.Path(path_type=Path))
+def demo_command(output, samples_folder):
+    """Write the built-in samples and render the skull-like shell to OUTPUT."""
+    io.check_writable(output)
+    rgb, image = samples.demo_picture(samples_folder, progress)
+    io.write_png(output, rgb)
+    click.echo(f"{output}: {samples_folder / 'shell'} rendered with {image.method} at alpha={image.view.alpha:g} "
+               f"beta={image.view.beta:g} in {image.seconds:.2f} s")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

@@ -1,0 +1,82 @@
+"""The steps every command shares: from a path on disk to run-length segments.
+
+A ``.vxs`` file is loaded as it is; anything else is read as a slice stack,
+cropped, resampled, thresholded and encoded.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from . import io, prep, segments
+from .errors import InputError
+
+__all__ = ["ReadOptions", "PrepOptions", "load_segments", "is_segments_file"]
+
+
+@dataclass
+class ReadOptions:
+    """How to read a slice stack (see :func:`voxrender.io.read_volume`)."""
+
+    format: str = "auto"
+    raw: str | None = None
+    spacing: tuple | None = None
+    series: str | None = None
+
+    def read(self, path, progress=None):
+        return io.read_volume(path, format=self.format, raw=self.raw, spacing=self.spacing, series=self.series,
+                              progress=progress)
+
+
+@dataclass
+class PrepOptions:
+    """How to turn values into a binary object (see :func:`voxrender.prep.binarize`)."""
+
+    threshold: float | str = "otsu"
+    crop: str | None = None
+    voxel: float | None = None
+    resample: bool = True
+    min_object: int = 0
+
+
+def is_segments_file(path):
+    return Path(path).suffix.lower() == ".vxs"
+
+
+@dataclass
+class Loaded:
+    """Segments with the seconds spent loading (``load``) and preparing (``prepare``) them."""
+
+    segments: segments.Segments
+    seconds: dict = field(default_factory=dict)
+
+
+def load_segments(path, read=None, prepare=None, progress=None):
+    """Segments of the object in ``path``: a ``.vxs`` file, or a slice stack to binarize and encode.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib, numpy as np
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "cube.npy"
+    >>> np.save(path, np.pad(np.full((2, 2, 2), 100, np.int16), 1))
+    >>> load_segments(path, prepare=PrepOptions(threshold=50)).segments.voxel_count
+    8
+    """
+    read = read or ReadOptions()
+    prepare = prepare or PrepOptions()
+    started = time.perf_counter()
+    if is_segments_file(path):
+        if not Path(path).is_file():
+            raise InputError(f"no such file: {path}")
+        return Loaded(segments.load(path), {"load": time.perf_counter() - started, "prepare": 0.0})
+    volume = read.read(path, progress)
+    loaded = time.perf_counter()
+    mask, info = prep.binarize(volume, prepare.threshold, crop_spec=prepare.crop, voxel=prepare.voxel,
+                               resample=prepare.resample, min_object=prepare.min_object, progress=progress)
+    meta = {"source": str(path), "threshold": info["threshold"], "voxel_mm": info["voxel"],
+            "input_shape": list(volume.shape), "input_spacing": list(volume.spacing)}
+    meta.update({k: v for k, v in volume.meta.items() if k in ("format", "modality", "units", "series")})
+    encoded = segments.encode(mask, info["spacing"], meta)
+    return Loaded(encoded, {"load": loaded - started, "prepare": time.perf_counter() - loaded})

@@ -1,0 +1,141 @@
+"""Small synthetic CT-like slice stacks: phantoms for the demo, the tests and for teaching.
+
+Each phantom is a grey-value volume ``[z, y, x]`` of unsigned 16-bit "stored
+values": about 0 for air and about 1000 for the object, so a threshold of 500
+separates them.  :func:`write_samples` writes each as a folder of 16-bit PNG
+slices (``slice_000.png`` ...), the format a user's own image folder would have.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .io import atomic_output
+
+__all__ = ["SAMPLES", "sphere", "torus", "shell", "staircase", "write_samples", "STAIRCASE_VOXELS", "demo_picture",
+           "DEMO_VIEW"]
+
+AIR, OBJECT = 40, 1040
+SAMPLE_THRESHOLD = 500
+
+# The 11 voxels (x, y, z) of the linear-octree paper's Fig. 2 (Chandran, Gupta and Patgawkar, Table 2).
+STAIRCASE_VOXELS = [(3, 3, 3), (2, 3, 3), (3, 2, 3), (2, 2, 3), (3, 3, 2), (2, 3, 2), (3, 2, 2), (2, 2, 2),
+                    (1, 3, 3), (3, 1, 2), (3, 3, 1)]
+
+
+def _grid(shape):
+    nz, ny, nx = shape
+    z, y, x = np.mgrid[:nz, :ny, :nx].astype(np.float32)
+    return x - (nx - 1) / 2, y - (ny - 1) / 2, z - (nz - 1) / 2
+
+
+def _ct(inside, noise=0.0, seed=0):
+    """Stored values from a bool (or 0..1 soft) object, with optional Gaussian noise."""
+    values = AIR + (OBJECT - AIR) * inside.astype(np.float32)
+    if noise:
+        values += np.random.default_rng(seed).normal(0, noise, values.shape).astype(np.float32)
+    return np.clip(np.rint(values), 0, 65535).astype(np.uint16)
+
+
+def sphere(n=48, radius=None):
+    """A ball of ``radius`` (default ``0.4 n``) in an ``n``-cube.
+
+    >>> v = sphere(16)
+    >>> v.shape, v.dtype.name, bool(v[8, 8, 8] > 500), bool(v[0, 0, 0] < 500)
+    ((16, 16, 16), 'uint16', True, True)
+    """
+    x, y, z = _grid((n, n, n))
+    radius = 0.4 * n if radius is None else radius
+    return _ct(x * x + y * y + z * z <= radius * radius)
+
+
+def torus(n=64, major=None, minor=None):
+    """A ring lying in the x-y plane: a convex-hull-defeating object with a hole.
+
+    >>> v = torus(32)
+    >>> v.shape, bool(v[8, 16, 16] < 500), bool(v[8, 16, 4] > 500)
+    ((16, 32, 32), True, True)
+    """
+    x, y, z = _grid((n // 2, n, n))
+    major = 0.3 * n if major is None else major
+    minor = 0.12 * n if minor is None else minor
+    ring = np.sqrt(x * x + y * y) - major
+    return _ct(ring * ring + z * z <= minor * minor)
+
+
+def shell(shape=(72, 88, 80), thickness=3.5, noise=60.0, seed=1):
+    """A noisy, hollow, skull-like shell: an ellipsoid with a wall, two eye holes and a hole below.
+
+    >>> v = shell((36, 44, 40), thickness=2.0)
+    >>> bool(v[18, 22, 20] < 500)
+    True
+    """
+    x, y, z = _grid(shape)
+    nz, ny, nx = shape
+    radii = np.array([0.42 * nx, 0.42 * ny, 0.42 * nz], np.float32)
+    distance = np.sqrt((x / radii[0]) ** 2 + (y / radii[1]) ** 2 + (z / radii[2]) ** 2)
+    wall = (distance <= 1) & (distance >= 1 - thickness / radii.min())
+    for side in (-1, 1):  # eye sockets: holes through the front (-y) wall
+        eye = (x - side * 0.16 * nx) ** 2 + (z + 0.08 * nz) ** 2 <= (0.09 * nx) ** 2
+        wall &= ~(eye & (y < 0))
+    wall &= ~((x * x + y * y <= (0.12 * nx) ** 2) & (z < 0))  # the large hole at the base
+    return _ct(wall, noise=noise, seed=seed)
+
+
+def staircase():
+    """The 4x4x4 staircase of the linear-octree paper's Fig. 2 (11 voxels).
+
+    >>> int((staircase() > 500).sum())
+    11
+    """
+    inside = np.zeros((4, 4, 4), bool)
+    for x, y, z in STAIRCASE_VOXELS:
+        inside[z, y, x] = True
+    return _ct(inside)
+
+
+SAMPLES = {"sphere": sphere, "torus": torus, "shell": shell, "staircase": staircase}
+
+
+def write_slices(values, folder):
+    """Write ``values[z, y, x]`` (uint16) as 16-bit PNG slices ``slice_000.png`` ... into ``folder``."""
+    import imageio.v3 as iio
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    for z, plane in enumerate(values):
+        with atomic_output(folder / f"slice_{z:03d}.png") as tmp:
+            iio.imwrite(tmp, plane, extension=".png")
+    return folder
+
+
+def write_samples(folder="samples", names=None):
+    """Write the named samples (default: all) as slice folders under ``folder``; return their paths.
+
+    >>> import tempfile
+    >>> [p.name for p in write_samples(tempfile.mkdtemp(), ["staircase"])]
+    ['staircase']
+    """
+    names = list(SAMPLES) if names is None else list(names)
+    return [write_slices(SAMPLES[name](), Path(folder) / name) for name in names]
+
+
+def demo_picture(folder="samples", progress=None):
+    """The demo: write the samples into ``folder`` if absent, render the shell; return ``(rgb, DepthImage)``."""
+    from .pipeline import PrepOptions, load_segments
+    from .render import render
+    from .shade import shade
+    from .view import View
+
+    shell_folder = Path(folder) / "shell"
+    if not shell_folder.is_dir():
+        write_samples(folder)
+    loaded = load_segments(shell_folder, prepare=PrepOptions(threshold=SAMPLE_THRESHOLD))
+    image = render(loaded.segments, View(**DEMO_VIEW), "btf", progress)
+    return shade(image.depth, "gradient", image.view.scale), image
+
+
+# The shell seen from the front, a little from the left and above: both eye holes show.
+DEMO_VIEW = {"alpha": 100.0, "beta": 20.0, "gamma": 0.0, "size": (256, 256)}

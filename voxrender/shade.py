@@ -1,0 +1,243 @@
+"""From depth image to picture: depth shading, gradient shading, the gamma rotation, 8/16-bit output.
+
+Gradient shading (Gordon and Reynolds; the dynamic-screen paper's section 2.4)
+estimates the surface normal at each pixel from the gradient of the depth
+image, so the cost depends on the image size only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = ["shade", "depth_shading", "gradient_shading", "surface_normals", "rotate_depth", "depth_to_uint16",
+           "parse_colour", "parse_vector"]
+
+
+def _depth_range(depth):
+    covered = np.isfinite(depth)
+    if not covered.any():
+        return covered, 0.0, 1.0
+    near, far = float(depth[covered].min()), float(depth[covered].max())
+    return covered, near, max(far, near + 1e-6)
+
+
+def depth_shading(depth, near_brightness=1.0, far_brightness=0.2):
+    """Brightness in [0, 1] falling linearly from the nearest to the farthest covered pixel; 0 elsewhere.
+
+    >>> depth_shading(np.array([[0.0, 10.0, np.inf]])).round(2).tolist()
+    [[1.0, 0.2, 0.0]]
+    """
+    covered, near, far = _depth_range(depth)
+    out = np.zeros(depth.shape)
+    out[covered] = near_brightness + (far_brightness - near_brightness) * (depth[covered] - near) / (far - near)
+    return out
+
+
+def _slope(depth, axis, scale):
+    """dZ'/dX' (or dY') in voxel units: central difference, or the gentler one-sided one at edges and steps."""
+    forward = np.full(depth.shape, np.nan)
+    backward = np.full(depth.shape, np.nan)
+    with np.errstate(invalid="ignore"):  # inf - inf between background pixels
+        step = np.diff(depth, axis=axis) * scale
+    step[~np.isfinite(step)] = np.nan
+    lead = [slice(None)] * 2
+    trail = [slice(None)] * 2
+    lead[axis], trail[axis] = slice(None, -1), slice(1, None)
+    forward[tuple(lead)] = step
+    backward[tuple(trail)] = step
+    both = np.isfinite(forward) & np.isfinite(backward)
+    smooth = both & (np.abs(forward - backward) <= 2.0)
+    gentler = np.where(np.abs(forward) <= np.abs(backward), forward, backward)
+    one = np.where(np.isfinite(forward), forward, backward)
+    slope = np.where(smooth, (forward + backward) / 2, np.where(both, gentler, one))
+    return np.nan_to_num(slope, nan=0.0)
+
+
+def smooth_depth(depth, sigma):
+    """Depth blurred over covered pixels only (normalised convolution); the background stays ``+inf``.
+
+    Voxel depth images are terraced (every cube face is flat); a blur of about
+    one voxel turns the terraces back into the surface they sample.
+
+    >>> smooth_depth(np.array([[0.0, 2.0, np.inf]]), 0.0).tolist()
+    [[0.0, 2.0, inf]]
+    """
+    from skimage.filters import gaussian
+
+    covered = np.isfinite(depth)
+    if sigma <= 0 or not covered.any():
+        return depth
+    weight = gaussian(covered.astype(float), sigma=sigma, mode="constant")
+    total = gaussian(np.where(covered, depth, 0.0), sigma=sigma, mode="constant")
+    return np.where(covered, total / np.maximum(weight, 1e-12), np.inf)
+
+
+def surface_normals(depth, scale=1.0, smoothing=0.0):
+    """Unit normals ``(H, W, 3)`` in image space (pointing at the viewer, ``-Z'``) from the depth gradient.
+
+    ``scale`` is pixels per voxel, so slopes come out in voxel units;
+    ``smoothing`` is the blur in voxels applied to the depth first.
+
+    >>> surface_normals(np.zeros((3, 3)))[1, 1].tolist()
+    [0.0, 0.0, -1.0]
+    """
+    depth = smooth_depth(depth, smoothing * scale)
+    gx, gy = _slope(depth, 1, scale), _slope(depth, 0, scale)
+    normals = np.stack([gx, gy, -np.ones_like(gx)], axis=-1)
+    return normals / np.linalg.norm(normals, axis=-1, keepdims=True)
+
+
+def gradient_shading(depth, scale=1.0, light=(0.0, 0.0, -1.0), ambient=0.1, depth_cue=0.25, smoothing=0.7):
+    """Brightness in [0, 1]: Lambert shading of the depth-gradient normals, with a little depth cueing.
+
+    Parameters
+    ----------
+    depth : ndarray (H, W)
+        Depth image (``+inf`` background).
+    scale : float
+        Pixels per voxel of the view.
+    light : 3 floats
+        Direction toward the light in image space (X' right, Y' down, Z' away
+        from the viewer); the default is a light at the viewer.
+    ambient : float
+        Brightness of surfaces facing away from the light.
+    depth_cue : float
+        How much darker the farthest surface is than the nearest (0 to 1).
+    smoothing : float
+        Blur of the depth, in voxels, before its gradient is taken (0: none).
+
+    >>> flat = gradient_shading(np.zeros((3, 3)))
+    >>> float(flat[1, 1])
+    1.0
+    """
+    light = np.asarray(light, dtype=float)
+    if light.shape != (3,) or not np.linalg.norm(light) > 0:
+        raise InputError(f"--light {tuple(light)} must be a non-zero direction x,y,z")
+    lambert = np.clip(surface_normals(depth, scale, smoothing) @ (light / np.linalg.norm(light)), 0, 1)
+    covered, near, far = _depth_range(depth)
+    cue = 1 - depth_cue * np.where(covered, (np.where(covered, depth, near) - near) / (far - near), 0)
+    return np.where(covered, (ambient + (1 - ambient) * lambert) * cue, 0.0)
+
+
+def shade(depth, mode="gradient", scale=1.0, light=(0.0, 0.0, -1.0), colour=(1.0, 1.0, 1.0),
+          background=(0, 0, 0)):
+    """An 8-bit RGB picture ``(H, W, 3)`` of a depth image.
+
+    Parameters
+    ----------
+    depth : ndarray (H, W)
+    mode : {"gradient", "depth"}
+    scale : float
+        Pixels per voxel (gradient shading measures slopes in voxel units).
+    light : 3 floats
+        Direction toward the light in image space (gradient mode).
+    colour : 3 floats in [0, 1]
+        Colour of a fully lit surface.
+    background : 3 ints in [0, 255]
+
+    >>> rgb = shade(np.array([[0.0, np.inf]]), background=(0, 0, 255))
+    >>> rgb.tolist()
+    [[[255, 255, 255], [0, 0, 255]]]
+    """
+    if mode == "gradient":
+        brightness = gradient_shading(depth, scale, light)
+    elif mode == "depth":
+        brightness = depth_shading(depth)
+    else:
+        raise InputError(f"unknown shading {mode!r}; choose gradient or depth")
+    rgb = brightness[..., None] * np.asarray(colour, dtype=float) * 255
+    rgb = np.where(np.isfinite(depth)[..., None], rgb, np.asarray(background, dtype=float))
+    return np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
+
+
+def rotate_depth(pre_image, gamma, size, pre_scale, scale):
+    """Rotate a pre-image (rendered with ``gamma = 0``) by ``gamma`` about the view axis.
+
+    The paper's Theorem 2: rotations alpha and beta give the view direction, gamma
+    only turns the picture.  Final pixel centre ``(X', Y')`` takes the nearest
+    pre-image pixel to ``Rz(-gamma) (X', Y')``; a pre-image rendered at a larger
+    ``pre_scale`` (supersampled) makes that nearest sample close.  Depth is
+    unchanged by a rotation about ``Z'``.
+
+    Parameters
+    ----------
+    pre_image : ndarray (Hp, Wp)
+    gamma : float
+        Degrees.
+    size : (H, W)
+        Final image size.
+    pre_scale, scale : float
+        Pixels per voxel of the pre-image and of the final image.
+
+    >>> pre = np.arange(16.0).reshape(4, 4)
+    >>> rotate_depth(pre, 90, (4, 4), 1.0, 1.0)[0].tolist()
+    [12.0, 8.0, 4.0, 0.0]
+    """
+    from skimage.transform import AffineTransform, warp
+
+    height, width = size
+    pre_height, pre_width = pre_image.shape
+    g = np.radians(gamma)
+    # final pixel (col, row) -> image (X', Y') -> pre-image (Xp, Yp) = Rz(-gamma)(X', Y') -> pre pixel.
+    to_image = np.array([[1 / scale, 0, (0.5 - width / 2) / scale], [0, 1 / scale, (0.5 - height / 2) / scale],
+                         [0, 0, 1]])
+    unrotate = np.array([[np.cos(g), np.sin(g), 0], [-np.sin(g), np.cos(g), 0], [0, 0, 1]])
+    to_pre = np.array([[pre_scale, 0, pre_width / 2 - 0.5], [0, pre_scale, pre_height / 2 - 0.5], [0, 0, 1]])
+    covered = np.isfinite(pre_image)
+    far = float(pre_image[covered].max()) + 1 if covered.any() else 0.0
+    filled = np.where(covered, pre_image, far)
+    rotated = warp(filled, AffineTransform(matrix=to_pre @ unrotate @ to_image), output_shape=(height, width),
+                   order=0, mode="constant", cval=far, preserve_range=True)
+    hit = warp(covered.astype(np.uint8), AffineTransform(matrix=to_pre @ unrotate @ to_image),
+               output_shape=(height, width), order=0, mode="constant", cval=0, preserve_range=True) > 0
+    return np.where(hit, rotated, np.inf).astype(np.float32)
+
+
+def depth_to_uint16(depth):
+    """A 16-bit picture of depth: 65535 at the nearest covered pixel, 1 at the farthest, 0 for background.
+
+    >>> depth_to_uint16(np.array([[0.0, 2.0, np.inf]])).tolist()
+    [[65535, 1, 0]]
+    """
+    covered, near, far = _depth_range(depth)
+    out = np.zeros(depth.shape, np.uint16)
+    out[covered] = np.rint(1 + (far - depth[covered]) / (far - near) * 65534).astype(np.uint16)
+    return out
+
+
+def parse_vector(text, name, count=3):
+    """``"1,2,3"`` to a tuple of floats, with a clear error.
+
+    >>> parse_vector("1, -2,0.5", "--light")
+    (1.0, -2.0, 0.5)
+    """
+    try:
+        values = tuple(float(v) for v in str(text).split(","))
+    except ValueError:
+        values = ()
+    if len(values) != count or not all(np.isfinite(values)):
+        raise InputError(f"{name} {text!r} must be {count} numbers separated by commas")
+    return values
+
+
+def parse_colour(text):
+    """A background colour: a grey level ``"40"`` or ``"r,g,b"`` in 0..255, or a name (black, white).
+
+    >>> parse_colour("white"), parse_colour("20,30,40"), parse_colour("7")
+    ((255, 255, 255), (20, 30, 40), (7, 7, 7))
+    """
+    names = {"black": (0, 0, 0), "white": (255, 255, 255), "grey": (128, 128, 128), "gray": (128, 128, 128)}
+    if str(text).lower() in names:
+        return names[str(text).lower()]
+    parts = str(text).split(",")
+    try:
+        values = tuple(int(p) for p in parts)
+    except ValueError:
+        values = ()
+    if len(values) == 1:
+        values = values * 3
+    if len(values) != 3 or not all(0 <= v <= 255 for v in values):
+        raise InputError(f"--background {text!r} must be a grey level 0..255, r,g,b, black or white")
+    return values

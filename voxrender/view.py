@@ -1,0 +1,182 @@
+"""Views: rotations, the projection contract, view-plane normals and Theorem 2.
+
+The contract (``DESIGN.md``): a voxel is the closed unit cube centred on its grid
+point ``p = (x, y, z)``; image space is ``p' = R (p - c)`` with ``c`` the volume
+centre and ``R = Rz(gamma) Ry(beta) Rx(alpha)``; the projection is orthographic,
+the viewer at ``Z' = -inf`` looking toward ``+Z'``; pixel ``(row j, column i)``
+has its centre at ``X' = (i + 0.5 - W/2) / scale``, ``Y' = (j + 0.5 - H/2) / scale``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = ["View", "rotation_matrix", "angles_from_matrix", "angles_from_vpn", "vpn_from_angles",
+           "PRESETS", "fit_scale", "pixel_centres"]
+
+# Viewer positions for a stack read in DICOM patient order (LPS): x runs to the
+# patient's left, y to the back, z up to the head.  Image up is the head (or, seen
+# from above and below, the face); see the README's table.
+PRESETS = {
+    "inferior": (0.0, 0.0, 0.0),
+    "anterior": (90.0, 0.0, 0.0),
+    "posterior": (90.0, 180.0, 0.0),
+    "left": (90.0, 90.0, 0.0),
+    "right": (90.0, -90.0, 0.0),
+    "superior": (0.0, 180.0, 0.0),
+}
+
+
+def rotation_matrix(alpha, beta, gamma=0.0):
+    """``Rz(gamma) @ Ry(beta) @ Rx(alpha)``, angles in degrees (the paper's Eq. 2).
+
+    >>> np.round(rotation_matrix(90, 0, 0)).astype(int)
+    array([[ 1,  0,  0],
+           [ 0,  0, -1],
+           [ 0,  1,  0]])
+    """
+    a, b, g = np.radians([alpha, beta, gamma])
+    rx = np.array([[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]])
+    ry = np.array([[math.cos(b), 0, math.sin(b)], [0, 1, 0], [-math.sin(b), 0, math.cos(b)]])
+    rz = np.array([[math.cos(g), -math.sin(g), 0], [math.sin(g), math.cos(g), 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def angles_from_matrix(matrix):
+    """Theorem 2: angles ``(alpha, beta, gamma)`` in degrees with ``rotation_matrix(...) == matrix``.
+
+    Of the two solutions the one with ``-90 <= beta <= 90`` is returned.  When
+    ``beta = +-90`` (gimbal lock) only ``alpha -+ gamma`` is determined
+    (the paper's Eq. 4): ``gamma = 0`` is chosen, so that no pre-image rotation is needed.
+
+    >>> angles = angles_from_matrix(rotation_matrix(30, -20, 75))
+    >>> [round(a, 6) for a in angles]
+    [30.0, -20.0, 75.0]
+    >>> [round(a, 6) for a in angles_from_matrix(rotation_matrix(10, 90, 25))]
+    [-15.0, 90.0, 0.0]
+    """
+    t = np.asarray(matrix, dtype=float)
+    if t.shape != (3, 3) or not np.allclose(t @ t.T, np.eye(3), atol=1e-6) or np.linalg.det(t) < 0:
+        raise InputError("not a rotation matrix")
+    sin_beta = -t[2, 0]
+    if abs(sin_beta) < 1 - 1e-12:
+        beta = math.asin(max(-1.0, min(1.0, sin_beta)))
+        alpha = math.atan2(t[2, 1], t[2, 2])  # sin a cos b, cos a cos b with cos b > 0
+        gamma = math.atan2(t[1, 0], t[0, 0])  # cos b sin g, cos b cos g
+    else:
+        beta = math.copysign(math.pi / 2, sin_beta)
+        gamma = 0.0
+        # beta = +90: t12 = sin(a - g), t13 = cos(a - g); beta = -90: t12 = -sin(a + g), t13 = -cos(a + g)
+        alpha = math.atan2(t[0, 1], t[0, 2]) if sin_beta > 0 else math.atan2(-t[0, 1], -t[0, 2])
+    return tuple(float(_wrap(math.degrees(v))) for v in (alpha, beta, gamma))
+
+
+def _wrap(degrees):
+    """Angle in (-180, 180]."""
+    wrapped = (degrees + 180.0) % 360.0 - 180.0
+    return 180.0 if wrapped == -180.0 else wrapped
+
+
+def vpn_from_angles(alpha, beta, gamma=0.0):
+    """The view plane normal: the unit vector in object space (x, y, z) that points at the viewer.
+
+    >>> np.round(vpn_from_angles(0, 0), 6).tolist()
+    [-0.0, -0.0, -1.0]
+    """
+    return -rotation_matrix(alpha, beta, gamma)[2]
+
+
+def angles_from_vpn(vpn):
+    """Angles ``(alpha, beta, 0)`` in degrees that put the viewer on the side ``vpn`` points to.
+
+    ``vpn`` is the octree papers' view plane normal, in object coordinates (x, y, z),
+    pointing from the object toward the viewer.
+
+    >>> [round(a, 3) for a in angles_from_vpn((0, 0, -1))]
+    [0.0, 0.0, 0.0]
+    >>> v = np.array([1.0, 1.0, 1.0]) / 3 ** 0.5
+    >>> bool(np.allclose(vpn_from_angles(*angles_from_vpn(v)), v))
+    True
+    """
+    v = np.asarray(vpn, dtype=float)
+    norm = np.linalg.norm(v) if v.shape == (3,) else 0
+    if not norm or not np.isfinite(norm):
+        raise InputError(f"--vpn {tuple(vpn)} is not a non-zero direction i,j,k")
+    i, j, k = v / norm
+    # The view direction d = -vpn is R's last row: (-sin b, sin a cos b, cos a cos b).
+    beta = math.asin(max(-1.0, min(1.0, i)))
+    alpha = math.atan2(-j, -k) if math.hypot(j, k) > 1e-12 else 0.0
+    return (_wrap(math.degrees(alpha)) + 0.0, math.degrees(beta) + 0.0, 0.0)
+
+
+def fit_scale(shape, size):
+    """Pixels per voxel that fit a ``shape = (nz, ny, nx)`` volume in ``size = (H, W)`` at any rotation.
+
+    >>> round(fit_scale((10, 10, 10), (100, 200)), 4)
+    5.7735
+    """
+    return min(size) / math.sqrt(sum(n * n for n in shape))
+
+
+@dataclass(frozen=True)
+class View:
+    """A view of the contract: angles in degrees, ``size = (H, W)`` pixels, ``scale`` pixels per voxel.
+
+    ``scale=None`` means: fit the volume at any rotation (see :func:`fit_scale`).
+
+    Examples
+    --------
+    >>> v = View(alpha=30, size=(64, 48)).fitted((8, 8, 8))
+    >>> round(v.scale, 3)
+    3.464
+    >>> v.matrix.shape
+    (3, 3)
+    """
+
+    alpha: float = 0.0
+    beta: float = 0.0
+    gamma: float = 0.0
+    size: tuple[int, int] = (512, 512)
+    scale: float | None = None
+
+    def __post_init__(self):
+        height, width = self.size
+        if int(height) < 1 or int(width) < 1:
+            raise InputError(f"image size {width}x{height} must be at least 1x1")
+        if self.scale is not None and not (self.scale > 0 and math.isfinite(self.scale)):
+            raise InputError(f"--scale {self.scale} must be a positive number of pixels per voxel")
+        for name in ("alpha", "beta", "gamma"):
+            if not math.isfinite(getattr(self, name)):
+                raise InputError(f"--{name} must be a finite angle in degrees")
+
+    @property
+    def matrix(self):
+        return rotation_matrix(self.alpha, self.beta, self.gamma)
+
+    def fitted(self, shape):
+        """This view with ``scale`` set (fitted to ``shape`` when it is ``None``)."""
+        return self if self.scale is not None else replace(self, scale=fit_scale(shape, self.size))
+
+    @classmethod
+    def preset(cls, name, **kwargs):
+        """A named view (see ``PRESETS``)."""
+        if name not in PRESETS:
+            raise InputError(f"unknown view {name!r}; choose one of {', '.join(PRESETS)}")
+        alpha, beta, gamma = PRESETS[name]
+        return cls(alpha=alpha, beta=beta, gamma=gamma, **kwargs)
+
+
+def pixel_centres(view):
+    """Image-space ``X'`` of each column and ``Y'`` of each row of ``view`` (scale must be set).
+
+    >>> pixel_centres(View(size=(2, 4), scale=1.0))
+    (array([-1.5, -0.5,  0.5,  1.5]), array([-0.5,  0.5]))
+    """
+    height, width = view.size
+    return ((np.arange(width) + 0.5 - width / 2) / view.scale,
+            (np.arange(height) + 0.5 - height / 2) / view.scale)
