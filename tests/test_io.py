@@ -1,4 +1,4 @@
-import gzip
+import os
 import zlib
 
 import imageio.v3 as iio
@@ -247,6 +247,15 @@ def test_atomic_output_leaves_nothing_on_failure(tmp_path):
             tmp.write_bytes(b"half")
             raise RuntimeError("boom")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_atomic_output_has_the_usual_permissions(tmp_path):
+    target = tmp_path / "out.bin"
+    with io.atomic_output(target) as tmp:
+        tmp.write_bytes(b"x")
+    mask = os.umask(0)
+    os.umask(mask)
+    assert target.stat().st_mode & 0o777 == 0o666 & ~mask
 
 
 def test_check_writable(tmp_path):
