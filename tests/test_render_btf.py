@@ -39,7 +39,7 @@ def test_random_views_on_a_torus_match_the_marcher():
     rng = np.random.default_rng(7)
     for alpha, beta, gamma in rng.uniform(-180, 180, size=(4, 3)):
         scale = float(rng.uniform(0.6, 2.5))
-        depth = render(segments.encode(mask), View(alpha, beta, gamma, (48, 48), scale)).depth
+        depth = render(segments.encode(mask), View(alpha, beta, gamma, (48, 48), scale), "btf").depth
         iou, close = agreement(depth, march(mask, alpha, beta, gamma, (48, 48), scale), tolerance=0.03)
         # A ray that only grazes a cube edge for less than the marcher's step can be missed by it.
         assert iou >= 0.995 and close >= 0.99
@@ -77,7 +77,7 @@ def test_painter_order_hides_what_is_behind():
 def test_preimage_rotation_matches_direct_gamma(ball):
     encoded = segments.encode(ball)
     view = View(30, 20, 35, (40, 44), 1.3)
-    direct = render(encoded, view).depth
+    direct = render(encoded, view, "btf").depth
     rotated, stats = render_preimage(render_btf, encoded, view, supersample=4)
     iou, close = agreement(rotated, direct, tolerance=1.5)
     assert iou >= 0.95 and close >= 0.98

@@ -14,18 +14,22 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..shade import rotate_depth
 from ..view import View
 from .btf import render_btf
+from .clip import Clip
+from .ftb import render_ftb
+from .preimage import render_preimage
 
-__all__ = ["METHODS", "DepthImage", "render"]
+__all__ = ["METHODS", "DEFAULT_METHOD", "DepthImage", "Clip", "render", "render_preimage"]
 
 METHODS = {
+    "ftb": render_ftb,
     "btf": render_btf,
 }
+DEFAULT_METHOD = "ftb"
 # Methods that render only alpha and beta (rows stay parallel to scanlines, Theorem 1);
 # gamma is then applied by rotating a supersampled pre-image (Theorem 2).
-PREIMAGE_METHODS = set()
+PREIMAGE_METHODS = {"ftb"}
 
 
 @dataclass
@@ -43,13 +47,16 @@ class DepthImage:
         return np.isfinite(self.depth)
 
 
-def render(segments, view, method="btf", progress=None, supersample=2):
+def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, clip=None):
     """Render ``segments`` with ``method`` from ``view`` (scale fitted when unset).
+
+    ``supersample`` is the pre-image's scale factor for methods that apply gamma by
+    rotating a pre-image; ``clip`` is a :class:`Clip` (clip limits, cut plane) or ``None``.
 
     >>> from voxrender.segments import encode
     >>> image = render(encode(np.ones((3, 3, 3), bool)), View(size=(8, 8), scale=1.0))
-    >>> int(image.coverage.sum()), image.stats["voxels_projected"]
-    (16, 27)
+    >>> int(image.coverage.sum()), image.stats["pixels_lit"]
+    (16, 16)
     """
     if method not in METHODS:
         raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
@@ -58,30 +65,7 @@ def render(segments, view, method="btf", progress=None, supersample=2):
     view = view.fitted(segments.shape)
     started = time.perf_counter()
     if method in PREIMAGE_METHODS and view.gamma % 360:
-        depth, stats = render_preimage(METHODS[method], segments, view, supersample, progress)
+        depth, stats = render_preimage(METHODS[method], segments, view, supersample, progress, clip)
     else:
-        depth, stats = METHODS[method](segments, view, progress=progress)
+        depth, stats = METHODS[method](segments, view, progress=progress, clip=clip)
     return DepthImage(depth, view, method, stats, time.perf_counter() - started)
-
-
-def render_preimage(renderer, segments, view, supersample=2, progress=None):
-    """Render ``view`` as the pre-image of (alpha, beta) at ``supersample`` times the scale, turned by gamma.
-
-    The pre-image is large enough to hold the final image at any gamma.
-
-    >>> from voxrender.segments import encode
-    >>> from voxrender.render.btf import render_btf
-    >>> depth, _ = render_preimage(render_btf, encode(np.ones((2, 2, 2), bool)),
-    ...                            View(gamma=45, size=(6, 6), scale=1.0))
-    >>> int(np.isfinite(depth).sum())
-    4
-    """
-    height, width = view.size
-    g = np.radians(view.gamma)
-    reach = abs(np.cos(g)), abs(np.sin(g))
-    pre_size = (int(np.ceil((reach[1] * width + reach[0] * height) * supersample)) + 2,
-                int(np.ceil((reach[0] * width + reach[1] * height) * supersample)) + 2)
-    pre_view = View(view.alpha, view.beta, 0.0, pre_size, view.scale * supersample)
-    pre, stats = renderer(segments, pre_view, progress=progress)
-    stats = dict(stats, preimage_size=list(pre_size), supersample=supersample)
-    return rotate_depth(pre, view.gamma, view.size, pre_view.scale, view.scale), stats

@@ -19,9 +19,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..view import pixel_centres
-from .cube import footprint, ray_cube_entry
+from .geometry import footprint, ray_cube_entry
 
-__all__ = ["render_btf", "render_btf_literal", "back_to_front", "slice_voxels"]
+__all__ = ["render_btf", "render_btf_literal", "back_to_front", "expand_runs", "slice_runs"]
 
 
 def back_to_front(n, direction):
@@ -34,18 +34,25 @@ def back_to_front(n, direction):
     return order[::-1] if direction > 0 else order
 
 
-def slice_voxels(segments, z):
-    """``(y, x)`` of every object voxel of slice ``z``, expanded from its runs.
+def expand_runs(rows, starts, ends):
+    """``(y, x)`` of every voxel of the runs ``[starts, ends]`` of rows ``rows``.
 
-    >>> from voxrender.segments import encode
-    >>> slice_voxels(encode(np.array([[[0, 1, 1, 0, 1]]], bool)), 0)
-    (array([0, 0, 0], dtype=int32), array([1, 2, 4]))
+    >>> expand_runs(np.array([0, 3]), np.array([1, 4]), np.array([2, 4]))
+    (array([0, 0, 3]), array([1, 2, 4]))
     """
-    rows, starts, ends = segments.slice(z)
     lengths = ends.astype(np.int64) - starts + 1
     first = np.cumsum(lengths) - lengths
     x = np.repeat(starts.astype(np.int64) - first, lengths) + np.arange(int(lengths.sum()))
     return np.repeat(rows, lengths), x
+
+
+def slice_runs(segments, z, matrix, clip=None):
+    """``(rows, starts, ends)`` of slice ``z``, clipped when ``clip`` is given."""
+    rows, starts, ends = segments.slice(z)
+    if clip is not None and clip.active:
+        keep, starts, ends = clip.apply_runs(z, rows, starts, ends, matrix, segments.shape)
+        rows, starts, ends = rows[keep], starts[keep], ends[keep]
+    return rows, starts, ends
 
 
 def _centres(matrix, shape, z, y, x):
@@ -74,7 +81,7 @@ def _paint_slice(matrix, view, shape, z, y, x):
     return pixels, depths
 
 
-def render_btf(segments, view, progress=None):
+def render_btf(segments, view, progress=None, clip=None):
     """Back-to-front rendering, vectorised over the voxels of each slice.
 
     Parameters
@@ -84,6 +91,8 @@ def render_btf(segments, view, progress=None):
         With ``scale`` set.
     progress : callable, optional
         ``progress(iterable, length, label)``.
+    clip : Clip, optional
+        Clip limits and cut plane (see :mod:`voxrender.render.clip`).
 
     Returns
     -------
@@ -106,7 +115,7 @@ def render_btf(segments, view, progress=None):
     stats = {"slices": 0, "rows": 0, "voxels_projected": 0, "pixel_writes": 0}
     order = back_to_front(segments.shape[0], matrix[2, 2])
     for z in (progress(order, len(order), "btf") if progress else order):
-        y, x = slice_voxels(segments, z)
+        y, x = expand_runs(*slice_runs(segments, z, matrix, clip))
         if not len(x):
             continue
         pixels, depths = _paint_slice(matrix, view, segments.shape, z, y, x)
@@ -120,7 +129,7 @@ def render_btf(segments, view, progress=None):
     return image.reshape(height, width).astype(np.float32), stats
 
 
-def render_btf_literal(segments, view):
+def render_btf_literal(segments, view, clip=None):
     """Back-to-front rendering one voxel at a time, as the paper describes it (the test oracle).
 
     Slices, rows within a slice and voxels within a row are visited from the
@@ -137,6 +146,9 @@ def render_btf_literal(segments, view):
         slice_has_voxels = False
         for y in back_to_front(ny, matrix[2, 1]):
             starts, ends = segments.row(z, y)
+            if clip is not None and clip.active:
+                keep, starts, ends = clip.apply_runs(z, y, starts, ends, matrix, segments.shape)
+                starts, ends = starts[keep], ends[keep]
             if not len(starts):
                 continue
             slice_has_voxels = True

@@ -1,0 +1,124 @@
+import numpy as np
+import pytest
+
+from reference import agreement, march
+from voxrender import segments
+from voxrender.render import render
+from voxrender.render.btf import render_btf
+from voxrender.render.clip import Clip
+from voxrender.render.ftb import render_ftb
+from voxrender.render.ftb_literal import render_ftb_literal
+from voxrender.view import View
+
+# The paper's Fig. 10 orientations, both ranges of alpha, gimbal lock, axis-aligned views, scales below
+# 1/sqrt(2) and up to 3.
+VIEWS = [(-45, 15, 1.0), (60, 120, 1.0), (30, 10, 1.0), (0, 0, 1.0), (90, 0, 2.0), (135, 45, 1.5), (200, -30, 2.0),
+         (12, -89, 2.5), (-170, 63, 0.7), (45, 90, 0.5), (100, 200, 3.0)]
+
+
+def assert_same(depth_a, depth_b, atol=1e-5):
+    assert np.array_equal(np.isfinite(depth_a), np.isfinite(depth_b))
+    assert np.allclose(depth_a[np.isfinite(depth_a)], depth_b[np.isfinite(depth_b)], atol=atol)
+
+
+@pytest.mark.parametrize("alpha,beta,scale", VIEWS)
+def test_production_equals_literal_images_and_statistics(ball, alpha, beta, scale):
+    encoded = segments.encode(ball)
+    view = View(alpha, beta, 0, (30, 32), scale)
+    fast, fast_stats = render_ftb(encoded, view)
+    slow, slow_stats = render_ftb_literal(encoded, view)
+    assert fast_stats == slow_stats
+    assert_same(fast, slow)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_production_equals_literal_on_random_objects(seed):
+    """Rows with many segments exercise every MERGE case, SPLIT included."""
+    rng = np.random.default_rng(seed)
+    mask = rng.random((8, 10, 14)) < rng.uniform(0.1, 0.6)
+    alpha, beta = rng.uniform(-180, 180, 2)
+    view = View(alpha, beta, 0, (26, 28), float(rng.uniform(0.5, 3)))
+    clip = Clip(x=(1, 12), z=(None, 7), cut_depth=float(rng.uniform(-4, 1))) if seed % 2 else None
+    fast, fast_stats = render_ftb(segments.encode(mask), view, clip=clip)
+    slow, slow_stats = render_ftb_literal(segments.encode(mask), view, clip=clip)
+    assert fast_stats == slow_stats
+    assert_same(fast, slow)
+
+
+def test_every_merge_case_occurs():
+    rng = np.random.default_rng(1)
+    totals = {str(c): 0 for c in range(1, 9)}
+    for _ in range(4):
+        mask = rng.random((8, 10, 14)) < 0.4
+        _, stats = render_ftb(segments.encode(mask), View(*rng.uniform(-180, 180, 2), 0, (26, 28), 1.7))
+        for c, n in stats["cases"].items():
+            totals[c] += n
+    assert all(n > 0 for n in totals.values()), totals
+
+
+@pytest.mark.parametrize("alpha,beta,scale", VIEWS)
+def test_ftb_and_btf_give_the_same_depth_image(ball, alpha, beta, scale):
+    encoded = segments.encode(ball)
+    view = View(alpha, beta, 0, (40, 44), scale)
+    assert_same(render_ftb(encoded, view)[0], render_btf(encoded, view)[0])
+
+
+# Generic angles: at special ones (cos 60 = 1/2) some rays only touch a cube's edge, which the closed
+# cubes of the contract count and a sampling marcher cannot see.
+@pytest.mark.parametrize("alpha,beta,scale", [(-45, 15, 1.0), (61, 119, 1.0), (31, 11, 1.3), (0, 0, 1.0),
+                                              (-170, 63, 0.7), (100, 200, 3.0)])
+def test_matches_an_independent_ray_marcher(ball, alpha, beta, scale):
+    depth = render(segments.encode(ball), View(alpha, beta, 0, (40, 44), scale), "ftb").depth
+    iou, close = agreement(depth, march(ball, alpha, beta, 0, (40, 44), scale), tolerance=0.03)
+    assert iou >= 0.97 and close >= 0.99  # the marcher misses what a ray meets for less than its step
+
+
+def test_lit_pixels_are_never_tested_again():
+    """A solid block seen face on: the back slices find their scanlines full and are skipped."""
+    mask = np.ones((12, 8, 8), bool)
+    depth, stats = render_ftb(segments.encode(mask), View(0, 0, 0, (16, 16), 1.0))
+    assert stats["pixels_lit"] == np.isfinite(depth).sum() == 64
+    assert stats["unlit_segments_start"] == 8 and stats["unlit_segments_end"] == 0
+    assert stats["rows_skipped_full"] == 11 * 8  # every row behind the first slice
+    assert stats["merge_calls"] == 8 and stats["cases"]["4"] == 8
+
+
+def test_gamma_by_preimage_matches_the_contract():
+    zz, yy, xx = np.mgrid[:24, :26, :28]
+    blob = ((xx - 13) ** 2 + (yy - 12) ** 2 + (zz - 11) ** 2 <= 100) & ((xx + yy) % 7 != 0)  # grooved ball
+    encoded = segments.encode(blob)
+    for alpha, beta, gamma in [(30, 20, 35), (-60, 100, -120), (10, 10, 90)]:
+        view = View(alpha, beta, gamma, (72, 80), 2.0)
+        iou, close = agreement(render(encoded, view, "ftb").depth, render(encoded, view, "btf").depth)
+        assert iou >= 0.99 and close >= 0.99
+
+
+def test_clip_limits_and_cut_plane_match_a_clipped_mask(ball):
+    view = View(30, 20, 0, (40, 44), 1.5)
+    for clip in [Clip(x=(3, 8)), Clip(y=(None, 5), z=(4, None)), Clip(cut_depth=-1.0), Clip(x=(2, None), cut_depth=0.5)]:
+        clipped = clip.apply_mask(ball, view.matrix)
+        expected = render_btf(segments.encode(clipped), view)[0]
+        assert_same(render_ftb(segments.encode(ball), view, clip=clip)[0], expected)
+        assert_same(render_btf(segments.encode(ball), view, clip=clip)[0], expected)
+
+
+def test_cutaway_shows_the_inside_of_a_hollow_ball():
+    zz, yy, xx = np.mgrid[:21, :21, :21] - 10
+    radius = np.sqrt(xx ** 2 + yy ** 2 + zz ** 2)
+    shell = (radius <= 9) & (radius >= 7)
+    view = View(0, 0, 0, (32, 32), 1.0)
+    closed = render(segments.encode(shell), view, "ftb").depth
+    opened = render(segments.encode(shell), view, "ftb", clip=Clip(cut_depth=-2.0)).depth
+    assert closed[16, 16] == pytest.approx(-9.5)
+    assert opened[16, 16] == pytest.approx(6.5)  # the far inner wall, seen through the cut
+
+
+def test_vhf_head_ftb_equals_btf():
+    from conftest import data_path
+    from voxrender import io
+
+    mask = io.read_volume(data_path("vhf_head")).values[::2, ::2, ::2] >= 300
+    encoded = segments.encode(mask)
+    for alpha, beta in [(-45, 15), (60, 120), (30, 10)]:
+        view = View(alpha, beta, 0, (200, 200), 0.8)
+        assert_same(render_ftb(encoded, view)[0], render_btf(encoded, view)[0])

@@ -1,0 +1,109 @@
+"""Clipping and cutaway views (the dynamic-screen paper's section 7), applied as loop limits.
+
+Object-space clip limits keep the voxels with ``x0 <= x < x1`` (likewise y, z); the
+image-space cut plane drops every voxel whose centre is nearer than ``Z' = cut_depth``,
+so the picture shows the inside of the object.  Both act on run-length segments as
+they are read (a run is shortened or skipped), with no re-encoding.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["Clip", "parse_range"]
+
+
+def parse_range(text, name):
+    """``"a:b"`` (either side may be empty) to ``(a, b)`` with ``None`` for an open side.
+
+    >>> parse_range("10:", "--clip-x")
+    (10, None)
+    """
+    lo, sep, hi = str(text).partition(":")
+    try:
+        bounds = (int(lo) if lo.strip() else None, int(hi) if hi.strip() else None)
+    except ValueError:
+        bounds = None
+    if not sep or bounds is None or (None not in bounds and bounds[0] >= bounds[1]):
+        raise InputError(f"{name} {text!r} must be a:b with whole numbers a < b (either may be left out)")
+    return bounds
+
+
+@dataclass(frozen=True)
+class Clip:
+    """Clip limits ``(lo, hi)`` per object axis (half-open, ``None`` for open) and a cut depth.
+
+    Examples
+    --------
+    >>> clip = Clip(x=(2, None))
+    >>> keep, starts, ends = clip.apply_runs(np.array([0, 0]), np.array([0, 0]), np.array([0, 4]),
+    ...                                      np.array([1, 6]), np.eye(3), (1, 1, 8))
+    >>> keep.tolist(), starts.tolist(), ends.tolist()
+    ([False, True], [2, 4], [1, 6])
+    """
+
+    x: tuple | None = None
+    y: tuple | None = None
+    z: tuple | None = None
+    cut_depth: float | None = None
+
+    def __post_init__(self):
+        if self.cut_depth is not None and not math.isfinite(self.cut_depth):
+            raise InputError("--cut-depth must be a finite depth in voxels")
+
+    @property
+    def active(self):
+        return any(v is not None for v in (self.x, self.y, self.z, self.cut_depth))
+
+    def apply_runs(self, z, y, starts, ends, matrix, shape):
+        """Clip runs ``[starts, ends]`` of rows ``(z, y)``; return ``(keep, starts, ends)``.
+
+        ``matrix`` is the view rotation (for the cut plane) and ``shape = (nz, ny, nx)``.
+        """
+        starts = np.asarray(starts, dtype=np.int64)
+        ends = np.asarray(ends, dtype=np.int64)
+        keep = np.ones(starts.shape, bool)
+        for bounds, index in ((self.y, y), (self.z, z)):
+            if bounds is not None:
+                lo, hi = bounds
+                keep &= (index >= (lo if lo is not None else -np.inf)) & (index < (hi if hi is not None else np.inf))
+        if self.x is not None:
+            lo, hi = self.x
+            if lo is not None:
+                starts = np.maximum(starts, lo)
+            if hi is not None:
+                ends = np.minimum(ends, hi - 1)
+        if self.cut_depth is not None:
+            nz, ny, nx = shape
+            # Z' of a voxel centre is r20 (x - cx) + rest(y, z); keep Z' >= cut_depth.
+            r20, r21, r22 = matrix[2]
+            rest = r21 * (np.asarray(y) - (ny - 1) / 2) + r22 * (np.asarray(z) - (nz - 1) / 2)
+            if abs(r20) < 1e-12:
+                keep &= rest >= self.cut_depth - 1e-9
+            else:
+                bound = (nx - 1) / 2 + (self.cut_depth - rest) / r20
+                if r20 > 0:
+                    starts = np.maximum(starts, np.ceil(bound - 1e-9).astype(np.int64))
+                else:
+                    ends = np.minimum(ends, np.floor(bound + 1e-9).astype(np.int64))
+        return keep & (starts <= ends), starts, ends
+
+    def apply_mask(self, mask, matrix):
+        """The voxels of ``mask[z, y, x]`` that survive the clip, as a new mask (for references and tests)."""
+        nz, ny, nx = mask.shape
+        z, y, x = np.indices(mask.shape)
+        keep = mask.copy()
+        for bounds, index in ((self.x, x), (self.y, y), (self.z, z)):
+            if bounds is not None:
+                lo, hi = bounds
+                keep &= (index >= (lo if lo is not None else 0)) & (index < (hi if hi is not None else 1 << 62))
+        if self.cut_depth is not None:
+            depth = (matrix[2, 0] * (x - (nx - 1) / 2) + matrix[2, 1] * (y - (ny - 1) / 2)
+                     + matrix[2, 2] * (z - (nz - 1) / 2))
+            keep &= depth >= self.cut_depth - 1e-9
+        return keep

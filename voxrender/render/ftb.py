@@ -1,0 +1,383 @@
+"""The dynamic-screen front-to-back renderer of Reynolds, Gordon and Chen (sections 3 to 6).
+
+The view is split as the paper's Theorems 1 and 2 say: rotations alpha and beta
+keep object rows parallel to scanlines, gamma turns the finished pre-image.
+For every scanline the *dynamic screen* holds the sorted list of its unlit
+segments, initialised to the projection of the object's bounding box.  Slices
+and rows are read front to back (slices and rows change roles when
+``|sin alpha| > |cos alpha|``); each object segment is scan-converted as the
+projection of its thin parallelepiped (Fig. 8), and on every scanline that
+projection is MERGEd with the unlit segments (Fig. 6): only unlit pixels are
+painted, lit pixels leave the list and are never looked at again, and a row is
+skipped on a scanline that has no unlit pixel left.
+
+Here the parallelepiped's span on each scanline is computed in closed form
+(:func:`~voxrender.render.geometry.row_spans`), the exact limit of the paper's
+DDA, and each lit pixel takes the depth where its ray enters the segment's box,
+so the depth image is the view contract's.
+
+Two implementations share the geometry below: :mod:`.ftb_literal` walks the
+linked lists case by case (the oracle), and :func:`render_ftb` runs the same
+merges for many scanlines at once: every merge of one row into one scanline is
+independent of the other scanlines (the paper's section 7), so the merges of a
+slice are batched by their rank on their scanline, and each batch is one set of
+sorted-interval array operations on all unlit segments.  Both give the same
+depth image and the same statistics, MERGE cases included.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .btf import back_to_front
+from .geometry import box_rows, ray_box_entry, row_spans
+
+__all__ = ["ScreenPlan", "plan_screen", "initial_unlit", "render_ftb", "CASES"]
+
+CASES = tuple(range(1, 9))
+
+
+@dataclass(frozen=True)
+class ScreenPlan:
+    """What a front-to-back pass needs to know about a view (alpha and beta only)."""
+
+    matrix: np.ndarray
+    shape: tuple
+    size: tuple
+    scale: float
+    outer_is_z: bool          # slices are the outer loop (|cos alpha| >= |sin alpha|), else rows are
+    outer_order: np.ndarray   # front to back
+    inner_order: np.ndarray
+    x_ascending: bool         # object rows are read with x ascending (front to back)
+    mirror: bool              # the merge walks right to left in the picture: columns are mirrored
+
+    def to_walk(self, first, last):
+        """Pixel columns ``[first, last]`` to the walk's coordinates (and back: the map is its own inverse)."""
+        if not self.mirror:
+            return first, last
+        width = self.size[1]
+        return width - 1 - last, width - 1 - first
+
+    def column(self, walk_x):
+        return self.size[1] - 1 - walk_x if self.mirror else walk_x
+
+    def centres(self, z, y, starts, ends):
+        """Image-space box centres ``(Xc, Yc, Zc)`` and half-lengths of runs ``[starts, ends]`` of rows (z, y)."""
+        nz, ny, nx = self.shape
+        p = np.stack(np.broadcast_arrays((starts + ends) / 2 - (nx - 1) / 2, np.asarray(y) - (ny - 1) / 2,
+                                         np.asarray(z) - (nz - 1) / 2)).astype(float)
+        xc, yc, zc = (self.matrix @ p.reshape(3, -1)).reshape((3,) + p.shape[1:])
+        return xc, yc, zc, (np.asarray(ends) - starts + 1) / 2
+
+    def scanlines(self, yc, half_y=0.5, half_z=0.5):
+        """First and last scanline a box centred at ``Y' = yc`` covers, clipped to the picture."""
+        first, last = box_rows(yc, half_y, half_z, self.matrix, self.scale, self.size[0])
+        return np.maximum(first, 0), np.minimum(last, self.size[0] - 1)
+
+    def scanline_y(self, line):
+        return (line + 0.5 - self.size[0] / 2) / self.scale
+
+    def spans(self, line, xc, yc, half_x, half_y=0.5, half_z=0.5):
+        """Walk-coordinate span ``[first, last]`` of boxes on scanline ``line`` (empty: first > last)."""
+        first, last = row_spans(self.scanline_y(line) - yc, xc, half_x, half_y, half_z, self.matrix, self.scale,
+                                self.size[1])
+        return self.to_walk(first, last)
+
+    def depth(self, line, walk_x, xc, yc, zc, half_x):
+        """Depth where the ray of pixel (line, walk_x) enters the box."""
+        dx = (self.column(walk_x) + 0.5 - self.size[1] / 2) / self.scale - xc
+        _, entry = ray_box_entry(dx, self.scanline_y(line) - yc, self.matrix, half_x)
+        return zc + entry
+
+
+def plan_screen(segments, view):
+    """The front-to-back plan for ``view`` (its gamma is ignored: it turns the pre-image afterwards)."""
+    from ..view import rotation_matrix
+
+    matrix = rotation_matrix(view.alpha, view.beta, 0.0)
+    nz, ny, _ = segments.shape
+    direction = matrix[2]
+    outer_is_z = abs(matrix[1, 1]) >= abs(matrix[1, 2])
+    z_order = back_to_front(nz, direction[2])[::-1]
+    y_order = back_to_front(ny, direction[1])[::-1]
+    x_ascending = direction[0] >= 0
+    return ScreenPlan(matrix, tuple(segments.shape), tuple(view.size), float(view.scale), outer_is_z,
+                      z_order if outer_is_z else y_order, y_order if outer_is_z else z_order, x_ascending,
+                      bool(x_ascending != (matrix[0, 0] >= 0)))
+
+
+def object_box(segments, clip=None):
+    """``((x0, x1), (y0, y1), (z0, z1))`` inclusive: the bounding box of the object inside the clip limits."""
+    (z0, z1), (y0, y1), (x0, x1) = segments.bounding_box()
+    box = [[x0, x1], [y0, y1], [z0, z1]]
+    if clip is not None:
+        for bounds, limits in zip((clip.x, clip.y, clip.z), box):
+            if bounds is not None:
+                if bounds[0] is not None:
+                    limits[0] = max(limits[0], bounds[0])
+                if bounds[1] is not None:
+                    limits[1] = min(limits[1], bounds[1] - 1)
+    return tuple(tuple(limits) for limits in box)
+
+
+def initial_unlit(plan, box):
+    """The dynamic screen at the start: per scanline, the span of the bounding box's projection.
+
+    Returns ``(lines, first, last)`` in walk coordinates, one unlit segment per scanline that has one.
+    """
+    (x0, x1), (y0, y1), (z0, z1) = box
+    if x0 > x1 or y0 > y1 or z0 > z1:
+        return (np.zeros(0, np.int64),) * 3
+    half = np.array([(x1 - x0 + 1) / 2, (y1 - y0 + 1) / 2, (z1 - z0 + 1) / 2])
+    xc, yc, _, _ = plan.centres(np.array((z0 + z1) / 2), np.array((y0 + y1) / 2), np.array(x0), np.array(x1))
+    first_line, last_line = plan.scanlines(yc, half[1], half[2])
+    lines = np.arange(int(first_line), int(last_line) + 1)
+    first, last = plan.spans(lines, xc, yc, half[0], half[1], half[2])
+    keep = first <= last
+    return lines[keep], first[keep].astype(np.int64), last[keep].astype(np.int64)
+
+
+def new_stats():
+    return {"slices_read": 0, "rows_read": 0, "segments_read": 0, "merge_calls": 0, "segments_merged": 0,
+            "cases": {str(c): 0 for c in CASES}, "pixels_lit": 0, "unlit_segments_start": 0,
+            "unlit_segments_peak": 0, "unlit_segments_end": 0, "scanlines_skipped_full": 0, "rows_skipped_full": 0}
+
+
+# ------------------------------------------------------------------ the vectorised renderer
+
+def _ranges(first, counts):
+    """Concatenated ``arange(first[k], first[k] + counts[k])`` and the index ``k`` of each element."""
+    owner = np.repeat(np.arange(len(counts)), counts)
+    starts = np.cumsum(counts) - counts
+    return first[owner] + np.arange(int(counts.sum())) - starts[owner], owner
+
+
+def _front_to_back_runs(segments, plan, clip):
+    """Every run, in the order the paper reads them: slabs, rows, then x front to back.
+
+    Returns arrays per run: slab position, row position (global, front to back), z, y, start, end.
+    """
+    nz, ny, _ = segments.shape
+    outer, inner = np.meshgrid(plan.outer_order, plan.inner_order, indexing="ij")
+    z, y = (outer, inner) if plan.outer_is_z else (inner, outer)
+    slab = np.broadcast_to(np.arange(len(plan.outer_order))[:, None], outer.shape).ravel()
+    rows = (z * ny + y).ravel()
+    offsets = np.asarray(segments.offsets)
+    counts = offsets[rows + 1] - offsets[rows]
+    present = counts > 0
+    rows, slab, counts = rows[present], slab[present], counts[present]
+    rank, owner = _ranges(np.zeros(len(rows), np.int64), counts)
+    if not plan.x_ascending:
+        rank = counts[owner] - 1 - rank
+    index = offsets[rows][owner] + rank
+    starts = np.asarray(segments.starts)[index].astype(np.int64)
+    ends = np.asarray(segments.ends)[index].astype(np.int64)
+    run_z, run_y = rows[owner] // ny, rows[owner] % ny
+    if clip is not None and clip.active:
+        keep, starts, ends = clip.apply_runs(run_z, run_y, starts, ends, plan.matrix, segments.shape)
+        owner, run_z, run_y, starts, ends = owner[keep], run_z[keep], run_y[keep], starts[keep], ends[keep]
+    return slab[owner], owner, run_z, run_y, starts, ends
+
+
+def _remove_painted(lo, hi, k, piece_lo, piece_hi):
+    """The unlit segments ``[lo, hi]`` once the pieces ``[piece_lo, piece_hi]`` of segments ``k`` are lit.
+
+    ``k`` is sorted and the pieces of one segment are sorted and disjoint; a segment with
+    ``m`` pieces leaves at most ``m + 1`` (DELETE, CHANGE, SPLIT).
+
+    >>> _remove_painted(np.array([0, 10, 20]), np.array([8, 12, 22]), np.array([0, 0, 1]),
+    ...                 np.array([2, 5, 10]), np.array([3, 5, 11]))
+    (array([ 0,  4,  6, 12, 20]), array([ 1,  4,  8, 12, 22]))
+    """
+    if not len(k):
+        return lo, hi
+    opens = np.concatenate([[True], k[1:] != k[:-1]])
+    closes = np.concatenate([k[1:] != k[:-1], [True]])
+    gap_lo = np.where(opens, lo[k], np.concatenate([[0], piece_hi[:-1]]) + 1)
+    gap_hi = piece_lo - 1
+    slot = np.arange(len(k)) + np.cumsum(closes) - closes
+    new_lo = np.empty(len(k) + int(closes.sum()), lo.dtype)
+    new_hi = np.empty_like(new_lo)
+    new_lo[slot], new_hi[slot] = gap_lo, gap_hi
+    new_lo[slot[closes] + 1], new_hi[slot[closes] + 1] = piece_hi[closes] + 1, hi[k[closes]]
+    keep = new_lo <= new_hi
+    alive = np.ones(len(lo), bool)
+    alive[k] = False
+    merged_lo = np.concatenate([lo[alive], new_lo[keep]])
+    order = np.argsort(merged_lo, kind="stable")
+    return merged_lo[order], np.concatenate([hi[alive], new_hi[keep]])[order]
+
+
+def _merge_batch(lo, hi, line, first, last, stride):
+    """MERGE, for many scanlines at once, of one row's spans per scanline with the unlit segments.
+
+    ``lo, hi`` are the unlit segments of all scanlines as sorted keys ``line * stride + x + 1``;
+    ``line, first, last`` are the object spans, sorted by scanline and then in walk order,
+    each scanline's spans being one MERGE call.  Returns the counts of cases 1 to 8 (index 0
+    unused), which spans met a full scanline (no MERGE), the painted pieces
+    ``(span, key_lo, key_hi)`` and the new unlit segments.
+
+    The two-pointer walk of Fig. 6 is evaluated in closed form: with ``M`` the largest end
+    of the earlier spans of the same call, span ``i`` starts at the first unlit segment
+    that ends after ``M``, passes (case 8) those that end before its start, covers (case 6,
+    or 7 for the first when it starts inside it) those that end before its end, and
+    finishes (cases 1 to 5) on the next one; a SPLIT (case 3) leaves one extra case 8 for
+    the following span.  Painted pixels are the span minus ``[.., M]``, intersected with
+    the unlit segments.
+    """
+    n = len(line)
+    base = line * stride
+    key_first, key_last = base + first + 1, base + last + 1
+    running = np.maximum.accumulate(key_last)
+    before = np.maximum(base, np.concatenate([[-1], running[:-1]]))  # key of M (base means none yet)
+    paint_lo = np.maximum(key_first, before + 1)
+    on_lo = np.searchsorted(lo, np.concatenate([base, base + stride, key_last + 1]), "left")
+    scan_start, scan_end, right_of_span = on_lo[:n], on_lo[n:2 * n], on_lo[2 * n:]
+    on_hi = np.searchsorted(hi, np.concatenate([before + 1, key_first, key_last, paint_lo]), "left")
+    pointer, first_reaching, last_reaching, paint_from = on_hi[:n], on_hi[n:2 * n], on_hi[2 * n:3 * n], on_hi[3 * n:]
+    full = scan_start == scan_end
+    walked = pointer < scan_end
+    passed = np.where(walked, np.clip(first_reaching, pointer, scan_end) - pointer, 0)
+    finish = np.maximum(pointer, last_reaching)
+    covered = np.where(walked, np.minimum(finish, scan_end) - (pointer + passed), 0)
+    top = max(len(lo) - 1, 0)
+    lo_padded = lo if len(lo) else np.zeros(1, np.int64)
+    hi_padded = hi if len(hi) else np.zeros(1, np.int64)
+    case7 = (covered > 0) & (key_first > np.maximum(lo_padded[np.minimum(pointer + passed, top)], before + 1))
+    at = np.minimum(finish, top)
+    low = np.maximum(lo_padded[at], before + 1)
+    inside = key_first > low
+    ends_at = key_last == hi_padded[at]
+    case = np.where(key_last < low, 1, 2 + inside + 2 * ends_at)
+    case = np.where(walked & (finish < scan_end), case, 0)
+    counts = np.bincount(case, minlength=9)
+    split_before = np.concatenate([[False], (case[:-1] == 3) & (line[1:] == line[:-1])]) & walked
+    counts[8] += int(passed.sum() + split_before.sum())
+    counts[7] += int(case7.sum())
+    counts[6] += int(covered.sum() - case7.sum())
+    # Painting: the part of each span not already painted by earlier spans of its call, on unlit pixels.
+    todo = paint_lo <= key_last
+    pieces = np.where(todo, np.maximum(right_of_span - paint_from, 0), 0)
+    k, span = _ranges(paint_from, pieces)
+    piece_lo, piece_hi = np.maximum(lo[k], paint_lo[span]), np.minimum(hi[k], key_last[span])
+    lo, hi = _remove_painted(lo, hi, k, piece_lo, piece_hi)
+    return counts, full, (span, piece_lo, piece_hi), lo, hi
+
+
+def render_ftb(segments, view, progress=None, clip=None, items=False):
+    """Front-to-back rendering with the dynamic screen, vectorised over scanlines.
+
+    Parameters
+    ----------
+    segments : Segments
+    view : View
+        With ``scale`` set; ``gamma`` is ignored (see :func:`voxrender.render.render_preimage`).
+    progress : callable, optional
+    clip : Clip, optional
+    items : bool
+        Also return the item buffer ``(owner, boxes)``: for each pixel the index of the box
+        (run) that lit it, ``-1`` for none, and per box its centre x, y, z and half-length
+        in object coordinates.  :func:`voxrender.render.preimage.render_preimage` uses it to
+        turn the pre-image by gamma exactly.
+
+    Returns
+    -------
+    depth : ndarray of float32, (H, W)
+    stats : dict
+        Slices, rows and segments read; MERGE calls, segments merged and the count of each
+        MERGE case; pixels lit; unlit segments at the start, at their peak (after a slice)
+        and at the end; scanline merges and rows skipped because the scanline was full.
+
+    Examples
+    --------
+    >>> from voxrender.segments import encode
+    >>> from voxrender.view import View
+    >>> depth, stats = render_ftb(encode(np.ones((2, 2, 2), bool)), View(size=(4, 4), scale=1.0))
+    >>> depth[1:3, 1:3].tolist(), stats["pixels_lit"], stats["cases"]["4"]
+    ([[-1.0, -1.0], [-1.0, -1.0]], 4, 2)
+    """
+    plan = plan_screen(segments, view)
+    height, width = view.size
+    stride = width + 2
+    stats = new_stats()
+    depth = np.full(height * width, np.inf)
+    owner_image = np.full(height * width, -1, np.int64)
+    lines, first, last = initial_unlit(plan, object_box(segments, clip))
+    lo, hi = lines * stride + first + 1, lines * stride + last + 1
+    stats["unlit_segments_start"] = stats["unlit_segments_peak"] = len(lo)
+
+    slab, row, z, y, starts, ends = _front_to_back_runs(segments, plan, clip)
+    stats["slices_read"] = len(np.unique(slab))
+    stats["rows_read"] = len(np.unique(row))
+    stats["segments_read"] = len(starts)
+    xc, yc, zc, half_x = plan.centres(z, y, starts, ends)
+    line_first, line_last = plan.scanlines(yc)
+    line, run = _ranges(line_first, np.maximum(line_last - line_first + 1, 0))
+    span_first, span_last = plan.spans(line, xc[run], yc[run], half_x[run])
+    keep = span_first <= span_last
+    line, run, span_first, span_last = line[keep], run[keep], span_first[keep], span_last[keep]
+
+    # A MERGE call is one (row, scanline); its rank is how many rows of the same slab reached that
+    # scanline before it.  Calls of one rank touch distinct scanlines, so they run together.
+    order = np.lexsort((run, row[run], line, slab[run]))
+    line, run, span_first, span_last = line[order], run[order], span_first[order], span_last[order]
+    call_start = np.concatenate([[True], (line[1:] != line[:-1]) | (row[run][1:] != row[run][:-1])])
+    call = np.cumsum(call_start) - 1
+    group_start = np.concatenate([[True], (line[1:] != line[:-1]) | (slab[run][1:] != slab[run][:-1])])
+    first_call_of_group = np.maximum.accumulate(np.where(group_start, call, 0))
+    rank = call - first_call_of_group
+    order = np.lexsort((run, span_first, line, rank, slab[run]))
+    line, run, span_first, span_last, call = (a[order] for a in (line, run, span_first, span_last, call))
+    step_key = slab[run] * (int(rank.max()) + 1 if len(rank) else 1) + rank[order]
+    step_bounds = np.flatnonzero(np.concatenate([[True], step_key[1:] != step_key[:-1], [True]]))
+    span_slab = slab[run]
+
+    span_full = np.zeros(len(line), bool)
+    slab_ends = set((np.flatnonzero(np.concatenate([span_slab[1:] != span_slab[:-1], [True]])) + 1).tolist())
+    cases = np.zeros(9, np.int64)
+    painted_spans, painted_lo, painted_hi = [], [], []
+    steps = range(len(step_bounds) - 1)
+    for s in (progress(steps, len(steps), "ftb") if progress else steps):
+        a, b = step_bounds[s], step_bounds[s + 1]
+        counts, span_full[a:b], (span, piece_lo, piece_hi), lo, hi = _merge_batch(
+            lo, hi, line[a:b], span_first[a:b], span_last[a:b], stride)
+        cases += counts
+        painted_spans.append(span + a)
+        painted_lo.append(piece_lo)
+        painted_hi.append(piece_hi)
+        if b in slab_ends:
+            stats["unlit_segments_peak"] = max(stats["unlit_segments_peak"], len(lo))
+    stats["unlit_segments_end"] = len(lo)
+    stats["cases"] = {str(c): int(cases[c]) for c in CASES}
+
+    # Every lit pixel was painted once; its depth is where its ray enters the box of the span that lit it.
+    if painted_spans:
+        piece_lo, piece_hi = np.concatenate(painted_lo), np.concatenate(painted_hi)
+        keys, piece = _ranges(piece_lo, piece_hi - piece_lo + 1)
+        owner = np.concatenate(painted_spans)[piece]
+        pixel_line, r = line[owner], run[owner]
+        walk_x = keys - pixel_line * stride - 1
+        pixels = pixel_line * width + plan.column(walk_x)
+        depth[pixels] = plan.depth(pixel_line, walk_x, xc[r], yc[r], zc[r], half_x[r])
+        owner_image[pixels] = r
+        stats["pixels_lit"] = len(keys)
+
+    # A call is merged unless its scanline was full; a row is skipped when all its calls were.
+    merged = ~span_full
+    stats["segments_merged"] = int(merged.sum())
+    call_full = np.zeros(int(call.max()) + 1 if len(call) else 0, bool)
+    call_full[call[span_full]] = True
+    call_row = np.zeros(len(call_full), np.int64)
+    call_row[call] = row[run]
+    stats["merge_calls"] = len(call_full) - int(call_full.sum())
+    stats["scanlines_skipped_full"] = int(call_full.sum())
+    calls_per_row = np.bincount(call_row)
+    full_per_row = np.bincount(call_row[call_full], minlength=len(calls_per_row))
+    stats["rows_skipped_full"] = int(((calls_per_row > 0) & (full_per_row == calls_per_row)).sum())
+    depth = depth.reshape(height, width).astype(np.float32)
+    if items:
+        boxes = np.stack([(starts + ends) / 2, y, z, half_x], axis=1).astype(float)
+        return depth, stats, (owner_image.reshape(height, width), boxes)
+    return depth, stats
