@@ -45,11 +45,32 @@ def test_render_writes_png_depth_and_stats(tmp_path, cube_folder):
     assert depths.dtype == np.float32 and depths.shape == (48, 64) and np.isinf(depths).any()
     assert np.array_equal(np.isfinite(depths), picture.any(axis=2))
     report = json.loads(stats.read_text())
-    assert report["method"] == "btf"
+    assert report["method"] == "ftb"  # the default
     assert set(report["seconds"]) == {"load", "prepare", "render", "shade", "write", "total"}
-    assert report["stats"]["voxels_projected"] == 6 * 6 * 6
+    assert report["stats"]["pixels_lit"] == np.isfinite(depths).sum()
+    assert report["stats"]["segments_read"] == 36
     assert iio.imread(depth_png).dtype == np.uint16
     assert sorted(p.name for p in tmp_path.iterdir()) == ["c.png", "cube", "d.npy", "d16.png", "s.json"]
+
+
+def test_methods_agree_and_clip_options_work(tmp_path, cube_folder):
+    depths = {}
+    for method in ("ftb", "btf"):
+        path = tmp_path / f"{method}.npy"
+        result = run("render", cube_folder, "--threshold", 500, "--method", method, "--alpha", 25, "--beta", -30,
+                     "--size", 48, "--scale", 2, "-o", tmp_path / f"{method}.png", "--depth-out", path)
+        assert result.exit_code == 0, result.output
+        depths[method] = np.load(path)
+    assert np.array_equal(np.isfinite(depths["ftb"]), np.isfinite(depths["btf"]))
+    whole = np.isfinite(depths["ftb"]).sum()
+    result = run("render", cube_folder, "--threshold", 500, "--alpha", 25, "--beta", -30, "--size", 48, "--scale", 2,
+                 "--clip-x", "4:7", "--clip-z", ":5", "--cut-depth", -1, "-o", tmp_path / "c.png", "--depth-out",
+                 tmp_path / "c.npy")
+    assert result.exit_code == 0, result.output
+    clipped = np.load(tmp_path / "c.npy")
+    assert 0 < np.isfinite(clipped).sum() < whole
+    # The cut keeps voxels whose centre is at Z' >= -1; their cubes reach at most sqrt(3)/2 nearer.
+    assert np.nanmin(np.where(np.isfinite(clipped), clipped, np.nan)) >= -1 - 3 ** 0.5 / 2
 
 
 def test_encode_then_render_the_vxs(tmp_path, cube_folder):
@@ -177,6 +198,10 @@ def test_unwritable_outputs(tmp_path, cube_folder):
     (["--voxel", "0"], ["--voxel"]),
     (["--min-object", "-3"], ["--min-object"]),
     (["--alpha", "abc"], ["--alpha"]),
+    (["--clip-x", "5"], ["--clip-x"]),
+    (["--clip-y", "9:3"], ["--clip-y"]),
+    (["--cut-depth", "inf"], ["--cut-depth"]),
+    (["--supersample", "0"], ["--supersample"]),
 ])
 def test_bad_options(tmp_path, cube_folder, args, words):
     result = run("render", cube_folder, *args, "-o", tmp_path / "o.png")

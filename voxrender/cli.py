@@ -19,7 +19,8 @@ import numpy as np
 from . import __version__, io, prep, samples, segments, shade
 from .errors import InputError
 from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
-from .render import METHODS, render
+from .render import DEFAULT_METHOD, METHODS, Clip, render
+from .render.clip import parse_range
 from .view import PRESETS, View, angles_from_vpn
 
 
@@ -170,7 +171,7 @@ def main():
 @_input_options
 @_prep_options_decorator
 @click.option("-o", "--output", required=True, type=click.Path(path_type=Path), help="PNG to write.")
-@click.option("--method", default="btf", show_default=True, type=click.Choice(sorted(METHODS)),
+@click.option("--method", default=DEFAULT_METHOD, show_default=True, type=click.Choice(sorted(METHODS)),
               help="Rendering algorithm.")
 @click.option("--view", type=click.Choice(list(PRESETS)), help="A named view (DICOM axial stacks).")
 @click.option("--alpha", type=float, help="Rotation about X1 in degrees.")
@@ -179,6 +180,11 @@ def main():
 @click.option("--vpn", metavar="I,J,K", help="View plane normal (object x,y,z toward the viewer).")
 @click.option("--size", default="512", show_default=True, metavar="N|WxH", help="Image size in pixels.")
 @click.option("--scale", type=float, help="Pixels per voxel (default: fit the volume at any rotation).")
+@click.option("--clip-x", metavar="A:B", help="Keep voxels with A <= x < B (object space, after resampling).")
+@click.option("--clip-y", metavar="A:B", help="Keep voxels with A <= y < B.")
+@click.option("--clip-z", metavar="A:B", help="Keep voxels with A <= z < B.")
+@click.option("--cut-depth", type=float, metavar="D",
+              help="Cutaway: ignore voxels nearer than Z' = D (voxels; 0 is the volume centre).")
 @click.option("--shading", default="gradient", show_default=True, type=click.Choice(["gradient", "depth"]))
 @click.option("--light", default="0,0,-1", show_default=True, metavar="X,Y,Z",
               help="Direction toward the light in image space (X right, Y down, Z away).")
@@ -191,19 +197,21 @@ def main():
               help="Save depth as a 16-bit PNG (near bright, background 0).")
 @click.option("--stats-json", type=click.Path(path_type=Path), metavar="FILE",
               help="Save timings and the renderer's statistics as JSON.")
-def render_command(input_path, output, method, shading, light, background, supersample, depth_out, depth_png,
-                   stats_json, **options):
+def render_command(input_path, output, method, clip_x, clip_y, clip_z, cut_depth, shading, light, background,
+                   supersample, depth_out, depth_png, stats_json, **options):
     """Render INPUT (a slice folder, volume file or .vxs) to a shaded PNG."""
     started = time.perf_counter()
     _check_vxs_options(input_path, options)
     view = _view_from(options)
+    clip = Clip(*(parse_range(text, f"--clip-{axis}") if text else None
+                  for axis, text in zip("xyz", (clip_x, clip_y, clip_z))), cut_depth)
     light = shade.parse_vector(light, "--light")
     background = shade.parse_colour(background)
     for path in (output, depth_out, depth_png, stats_json):
         if path is not None:
             io.check_writable(path)
     loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
-    image = render(loaded.segments, view, method, progress, supersample)
+    image = render(loaded.segments, view, method, progress, supersample, clip if clip.active else None)
     shaded_at = time.perf_counter()
     rgb = shade.shade(image.depth, shading, image.view.scale, light, background=background)
     written_at = time.perf_counter()

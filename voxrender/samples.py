@@ -133,7 +133,7 @@ def demo_picture(folder="samples", progress=None):
     if not shell_folder.is_dir():
         write_samples(folder)
     loaded = load_segments(shell_folder, prepare=PrepOptions(threshold=SAMPLE_THRESHOLD))
-    image = render(loaded.segments, View(**DEMO_VIEW), "btf", progress)
+    image = render(loaded.segments, View(**DEMO_VIEW), progress=progress)
     return shade(image.depth, "gradient", image.view.scale), image
 
 
