@@ -1,14 +1,26 @@
 """The benchmark behind ``make benchmark``: medians of repeated runs, ratios measured in the same run.
 
-Runs on ``../shared/data/vhf_head`` (or ``--data``); writes a Markdown table
-and the raw numbers as JSON into ``benchmark-results/``.
-
     python -m voxrender.bench [--repeat 5] [--data ../shared/data] [--out benchmark-results]
+
+It measures, on ``vhf_head`` at 300 HU (512 x 512 pictures at scale 1):
+
+* reading the DICOM folder, and threshold + run-length encoding;
+* every method of the registry at the dynamic-screen paper's Fig. 10 orientations and a few
+  random ones, with the ratio of each method to ``ftb`` per view; then the same at -300 HU
+  (the skin: the whole head is the object) at the paper's orientations;
+* VTK's CPU ray caster (``vtkFixedPointVolumeRayCastMapper``) on the same volume and views,
+  when ``vtk`` is installed (``pip install -e '.[peers]'``);
+* the whole command, DICOM folder to PNG, in a fresh process;
+* the paper's section 6 analysis: render time against N for a sphere and for a
+  convoluted object (a gyroid), with fitted exponents.
+
+Results go to ``benchmark-results/results.md`` and ``results.json``.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import platform
 import statistics
 import subprocess
@@ -21,17 +33,19 @@ import click
 import numpy as np
 
 from . import io, prep, segments
-from .render import METHODS, render
+from .render import DEFAULT_METHOD, METHODS, render
 from .view import View
 
-# The dynamic-screen paper's Fig. 10 orientations (alpha, beta), then a few fixed "random" ones.
-PAPER_VIEWS = [(-45.0, 15.0), (60.0, 120.0), (30.0, 10.0)]
+THRESHOLD = 300.0        # bone: a thin, convoluted object (the issue's case)
+SKIN_THRESHOLD = -300.0  # skin: the whole head, a solid, nearly convex object (the paper's kind of case)
+PAPER_VIEWS = [(-45.0, 15.0), (60.0, 120.0), (30.0, 10.0)]  # Fig. 10 (alpha, beta)
 RANDOM_VIEWS = [tuple(float(round(a, 1)) for a in pair)
                 for pair in np.random.default_rng(2026).uniform(-180, 180, size=(3, 2))]
+SCALING_SIZES = (64, 96, 128, 192, 256)
 
 
 def median_seconds(work, repeat):
-    """Median wall time of ``repeat`` calls of ``work()`` and the last result."""
+    """Median wall time of ``repeat`` calls of ``work()``, and the last result."""
     times, result = [], None
     for _ in range(repeat):
         started = time.perf_counter()
@@ -40,48 +54,200 @@ def median_seconds(work, repeat):
     return statistics.median(times), result
 
 
-def bench_encode(volume, threshold, repeat):
-    seconds, encoded = median_seconds(lambda: segments.encode(prep.binarize(volume, threshold)[0]), repeat)
+def bench_encode(volume, repeat):
+    seconds, encoded = median_seconds(lambda: segments.encode(prep.binarize(volume, THRESHOLD)[0]), repeat)
     return {"threshold_and_encode_s": seconds, "voxels": encoded.voxel_count, "segments": encoded.segment_count,
-            "grid": list(encoded.shape)}, encoded
+            "grid_xyz": list(encoded.shape[::-1])}, encoded
 
 
-def bench_render(encoded, repeat, size=512, scale=1.0):
+def bench_views(encoded, repeat, size=512, scale=1.0, peer=None, views=PAPER_VIEWS + RANDOM_VIEWS):
+    """Median seconds of every method (and the peer) at every view; same run, same volume."""
     rows = []
-    for alpha, beta in PAPER_VIEWS + RANDOM_VIEWS:
+    for alpha, beta in views:
         view = View(alpha, beta, 0.0, (size, size), scale)
-        row = {"alpha": alpha, "beta": beta}
+        row = {"alpha": alpha, "beta": beta, "seconds": {}, "stats": {}}
         for method in METHODS:
             seconds, image = median_seconds(lambda: render(encoded, view, method), repeat)
-            row[method] = {"seconds": seconds, "stats": image.stats, "covered": int(image.coverage.sum())}
+            row["seconds"][method] = seconds
+            row["stats"][method] = image.stats
+        if peer is not None:
+            row["seconds"]["vtk"] = peer.time(view, repeat)
         rows.append(row)
     return rows
 
 
-def bench_pipeline(path, threshold, repeat):
-    """The whole command, from DICOM folder to PNG, as a user runs it (a fresh process each time)."""
+class VtkPeer:
+    """VTK's CPU fixed-point ray caster on the same volume: step opacity at the threshold, nearest
+    interpolation, parallel projection, the same picture size and view direction."""
+
+    def __init__(self, values, threshold):
+        import vtk
+        from vtk.util import numpy_support
+
+        vtk.vtkObject.GlobalWarningDisplayOff()
+        self.vtk = vtk
+        nz, ny, nx = values.shape
+        image = vtk.vtkImageData()
+        image.SetDimensions(nx, ny, nz)
+        image.GetPointData().SetScalars(numpy_support.numpy_to_vtk(
+            np.ascontiguousarray(values, dtype=np.float32).ravel(), deep=True))
+        self.mapper = vtk.vtkFixedPointVolumeRayCastMapper()
+        self.mapper.SetInputData(image)
+        self.mapper.AutoAdjustSampleDistancesOff()
+        self.mapper.SetSampleDistance(1.0)
+        opacity = vtk.vtkPiecewiseFunction()
+        low = float(np.min(values)) - 1
+        opacity.AddPoint(low, 0.0)
+        opacity.AddPoint(threshold - 1e-3, 0.0)
+        opacity.AddPoint(threshold, 1.0)
+        opacity.AddPoint(max(float(np.max(values)), threshold) + 1, 1.0)
+        prop = vtk.vtkVolumeProperty()
+        prop.SetScalarOpacity(opacity)
+        prop.SetInterpolationTypeToNearest()
+        prop.ShadeOn()
+        volume = vtk.vtkVolume()
+        volume.SetMapper(self.mapper)
+        volume.SetProperty(prop)
+        self.renderer = vtk.vtkRenderer()
+        self.renderer.AddVolume(volume)
+        self.window = vtk.vtkRenderWindow()
+        self.window.SetOffScreenRendering(1)
+        self.window.AddRenderer(self.renderer)
+        self.centre = (np.array([nx, ny, nz]) - 1) / 2
+
+    def time(self, view, repeat):
+        height, width = view.size
+        self.window.SetSize(width, height)
+        camera = self.renderer.GetActiveCamera()
+        camera.ParallelProjectionOn()
+        r = view.matrix
+        camera.SetFocalPoint(*self.centre)
+        camera.SetPosition(*(self.centre - 2000 * r[2]))  # the viewer looks along +Z' = r[2]
+        camera.SetViewUp(*(-r[1]))                          # picture up is -Y'
+        camera.SetParallelScale(height / (2 * view.scale))
+        self.renderer.ResetCameraClippingRange()
+        self.window.Render()  # warm-up
+
+        def once():
+            camera.Modified()
+            self.window.Render()
+
+        return median_seconds(once, repeat)[0]
+
+
+def bench_pipeline(path, repeat):
+    """The whole command, DICOM folder to PNG, as a user runs it (a fresh process each time)."""
     with tempfile.TemporaryDirectory() as folder:
-        command = [sys.executable, "-m", "voxrender.cli", "render", str(path), "--threshold", str(threshold),
+        command = [sys.executable, "-m", "voxrender.cli", "render", str(path), "--threshold", str(THRESHOLD),
                    "--alpha", "30", "--beta", "10", "--size", "512", "--scale", "1", "-o", f"{folder}/out.png"]
         seconds, _ = median_seconds(lambda: subprocess.run(command, check=True, capture_output=True), repeat)
-    return {"command": "voxrender render vhf_head --threshold 300 --alpha 30 --beta 10 --size 512 --scale 1",
-            "seconds": seconds}
+    return {"command": f"voxrender render vhf_head --threshold {THRESHOLD:g} --alpha 30 --beta 10 --size 512 "
+                       "--scale 1", "method": DEFAULT_METHOD, "seconds": seconds}
+
+
+def phantom(kind, n):
+    """A ball (convex: C = 1) or a gyroid inside a ball (convoluted: C grows with the volume)."""
+    z, y, x = (np.mgrid[:n, :n, :n] - (n - 1) / 2).astype(np.float32)
+    ball = x * x + y * y + z * z <= (0.4 * n) ** 2
+    if kind == "sphere":
+        return ball
+    k = 2 * np.pi / 12  # a period of 12 voxels, whatever N
+    gyroid = np.sin(k * x) * np.cos(k * y) + np.sin(k * y) * np.cos(k * z) + np.sin(k * z) * np.cos(k * x)
+    return ball & (gyroid > 0.4)
+
+
+def bench_scaling(repeat, sizes=SCALING_SIZES):
+    """Time against N (N^3 volume, N x N picture at scale 1, view (30, 10)) and the fitted exponents."""
+    result = {}
+    for kind in ("sphere", "gyroid"):
+        rows = []
+        for n in sizes:
+            encoded = segments.encode(phantom(kind, n))
+            view = View(30.0, 10.0, 0.0, (n, n), 1.0)
+            row = {"n": n, "voxels": encoded.voxel_count}
+            for method in METHODS:
+                row[method] = median_seconds(lambda: render(encoded, view, method), repeat)[0]
+            rows.append(row)
+        exponents = {method: float(np.polyfit(np.log(sizes), np.log([r[method] for r in rows]), 1)[0])
+                     for method in METHODS}
+        # The slope between the two largest sizes, where fixed per-slice costs matter least.
+        last = {method: float(np.log(rows[-1][method] / rows[-2][method]) / np.log(sizes[-1] / sizes[-2]))
+                for method in METHODS}
+        result[kind] = {"rows": rows, "exponents": exponents, "exponents_largest": last}
+    return result
+
+
+def _views_table(rows, names):
+    lines = ["| alpha | beta | " + " | ".join(names) + " | " +
+             " | ".join(f"{m}/ftb" for m in names if m != "ftb") + " |",
+             "|---|---|" + "---|" * (2 * len(names) - 1)]
+    for row in rows:
+        seconds = row["seconds"]
+        lines.append(f"| {row['alpha']:g} | {row['beta']:g} | " +
+                     " | ".join(f"{seconds[m]:.3f}" for m in names) + " | " +
+                     " | ".join(f"{seconds[m] / seconds['ftb']:.2f}" for m in names if m != "ftb") + " |")
+    return lines
 
 
 def markdown(results):
+    methods = list(METHODS)
+    peers = ["vtk"] if results.get("vtk_version") else []
     lines = [f"voxrender benchmark, {results['when']}, {results['machine']}", "",
-             f"vhf_head at {results['threshold']} HU: grid {results['encode']['grid'][::-1]} (x, y, z), "
-             f"{results['encode']['voxels']} object voxels, {results['encode']['segments']} segments; "
-             f"read DICOM {results['read_s']:.2f} s, threshold + encode {results['encode']['threshold_and_encode_s']:.3f} s "
-             f"(median of {results['repeat']})", "",
-             "| alpha | beta | " + " | ".join(f"{m} s" for m in METHODS) + " |",
-             "|---|---|" + "---|" * len(METHODS)]
-    for row in results["render"]:
-        lines.append(f"| {row['alpha']:g} | {row['beta']:g} | " +
-                     " | ".join(f"{row[m]['seconds']:.3f}" for m in METHODS) + " |")
-    lines += ["", f"whole pipeline, DICOM folder to PNG, one process: {results['pipeline']['seconds']:.2f} s "
-              f"(`{results['pipeline']['command']}`)"]
+             f"vhf_head at {THRESHOLD:g} HU: grid {results['encode']['grid_xyz']} (x, y, z), "
+             f"{results['encode']['voxels']:,} object voxels, {results['encode']['segments']:,} segments; "
+             f"read DICOM {results['read_s']:.2f} s; threshold + encode "
+             f"{results['encode']['threshold_and_encode_s']:.3f} s (medians of {results['repeat']})", "",
+             "Render, 512 x 512 at scale 1 (median seconds; ratios to ftb in the same run):", ""]
+    lines += _views_table(results["views"], methods + peers)
+    if results.get("skin"):
+        skin = results["skin"]
+        lines += ["", f"vhf_head at {SKIN_THRESHOLD:g} HU (skin: the solid head), {skin['voxels']:,} object voxels, "
+                  f"{skin['segments']:,} segments, the paper's views:", ""]
+        lines += _views_table(skin["views"], methods)
+    if not peers:
+        lines += ["", "VTK is not installed: `pip install -e '.[peers]'` adds the peer column."]
+    else:
+        lines += ["", f"VTK {results['vtk_version']}: vtkFixedPointVolumeRayCastMapper, step opacity at the "
+                  "threshold, nearest interpolation, sample distance 1 voxel, parallel projection, its own threads."]
+    pipeline = results["pipeline"]
+    lines += ["", f"Whole command, DICOM folder to PNG, fresh process ({pipeline['method']}): "
+              f"{pipeline['seconds']:.2f} s (`{pipeline['command']}`)", "",
+              "Time against N (N^3 volume, N x N picture, view (30, 10)), median seconds:", ""]
+    for kind, data in results["scaling"].items():
+        lines += [f"| {kind} N | voxels | " + " | ".join(methods) + " |", "|---|---|" + "---|" * len(methods)]
+        for row in data["rows"]:
+            lines.append(f"| {row['n']} | {row['voxels']:,} | " + " | ".join(f"{row[m]:.4f}" for m in methods) + " |")
+        lines += ["", f"fitted exponent of N ({kind}): " +
+                  ", ".join(f"{m} {e:.2f}" for m, e in data["exponents"].items()) +
+                  "; between the two largest N: " +
+                  ", ".join(f"{m} {e:.2f}" for m, e in data["exponents_largest"].items()), ""]
     return "\n".join(lines)
+
+
+def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
+    """All sections; returns the results dict."""
+    path = Path(data) / "vhf_head"
+    started = time.perf_counter()
+    volume = io.read_volume(path)
+    read_s = time.perf_counter() - started
+    encode, encoded = bench_encode(volume, repeat)
+    peer, vtk_version = None, None
+    try:
+        import vtk
+
+        peer, vtk_version = VtkPeer(volume.values, THRESHOLD), vtk.vtkVersion.GetVTKVersion()
+    except ImportError:
+        pass
+    skin = segments.encode(prep.binarize(volume, SKIN_THRESHOLD)[0])
+    return {"when": time.strftime("%Y-%m-%d %H:%M"),
+            "machine": f"{platform.machine()}, {platform.python_version()}, numpy {np.__version__}",
+            "repeat": repeat, "read_s": read_s, "encode": encode, "vtk_version": vtk_version,
+            "views": bench_views(encoded, repeat, peer=peer),
+            "skin": {"voxels": skin.voxel_count, "segments": skin.segment_count,
+                     "views": bench_views(skin, repeat, views=PAPER_VIEWS)},
+            "pipeline": bench_pipeline(path, max(1, repeat // 2)) if pipeline else {"command": "", "seconds": math.nan,
+                                                                                   "method": DEFAULT_METHOD},
+            "scaling": bench_scaling(repeat, scaling_sizes)}
 
 
 @click.command()
@@ -89,20 +255,11 @@ def markdown(results):
               show_default=True, help="Folder holding vhf_head/.")
 @click.option("--repeat", default=5, show_default=True, type=click.IntRange(1, 100))
 @click.option("--out", default="benchmark-results", show_default=True, type=click.Path())
-@click.option("--threshold", default=300.0, show_default=True)
-def main(data, repeat, out, threshold):
+def main(data, repeat, out):
     """Time every renderer on vhf_head and write benchmark-results/."""
-    path = Path(data) / "vhf_head"
-    if not path.is_dir():
-        raise SystemExit(f"error: {path} is absent; the benchmark needs ../shared/data (or --data)")
-    started = time.perf_counter()
-    volume = io.read_volume(path)
-    read_s = time.perf_counter() - started
-    encode, encoded = bench_encode(volume, threshold, repeat)
-    results = {"when": time.strftime("%Y-%m-%d %H:%M"), "machine": f"{platform.machine()}, {platform.python_version()}, "
-               f"numpy {np.__version__}", "repeat": repeat, "threshold": threshold, "read_s": read_s,
-               "encode": encode, "render": bench_render(encoded, repeat),
-               "pipeline": bench_pipeline(path, threshold, max(1, repeat // 2))}
+    if not (Path(data) / "vhf_head").is_dir():
+        raise SystemExit(f"error: {Path(data) / 'vhf_head'} is absent; the benchmark needs ../shared/data (or --data)")
+    results = run(data, repeat)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "results.json").write_text(json.dumps(results, indent=2, default=float))

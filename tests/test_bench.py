@@ -1,0 +1,28 @@
+"""The benchmark's pieces run on small data (its timings are not asserted: machines are noisy)."""
+
+import numpy as np
+
+from voxrender import bench
+from voxrender.render import METHODS
+
+
+def test_scaling_section_runs_and_fits_exponents():
+    result = bench.bench_scaling(repeat=1, sizes=(12, 16, 20))
+    for kind in ("sphere", "gyroid"):
+        assert [row["n"] for row in result[kind]["rows"]] == [12, 16, 20]
+        assert set(result[kind]["exponents"]) == set(METHODS)
+        assert all(np.isfinite(list(result[kind]["exponents"].values())))
+
+
+def test_phantoms():
+    assert bench.phantom("sphere", 20).sum() > bench.phantom("gyroid", 20).sum() > 0
+
+
+def test_markdown_report():
+    results = {"when": "now", "machine": "here", "repeat": 1, "read_s": 1.0, "vtk_version": None,
+               "encode": {"grid_xyz": [4, 4, 4], "voxels": 8, "segments": 4, "threshold_and_encode_s": 0.1},
+               "views": [{"alpha": 1.0, "beta": 2.0, "seconds": {m: 1.0 for m in METHODS}}],
+               "pipeline": {"command": "c", "seconds": 1.0, "method": "ftb"},
+               "scaling": bench.bench_scaling(repeat=1, sizes=(8, 10))}
+    text = bench.markdown(results)
+    assert "| 1 | 2 |" in text and "fitted exponent" in text and "peers" in text
