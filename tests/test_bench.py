@@ -3,14 +3,15 @@
 import numpy as np
 
 from voxrender import bench
-from voxrender.render import METHODS
+from voxrender import segments
+from voxrender.view import View
 
 
 def test_scaling_section_runs_and_fits_exponents():
     result = bench.bench_scaling(repeat=1, sizes=(12, 16, 20))
     for kind in ("sphere", "gyroid"):
         assert [row["n"] for row in result[kind]["rows"]] == [12, 16, 20]
-        assert set(result[kind]["exponents"]) == set(METHODS)
+        assert set(result[kind]["exponents"]) == set(bench.timed_methods())
         assert all(np.isfinite(list(result[kind]["exponents"].values())))
 
 
@@ -21,8 +22,12 @@ def test_phantoms():
 def test_markdown_report():
     results = {"when": "now", "machine": "here", "repeat": 1, "read_s": 1.0, "vtk_version": None,
                "encode": {"grid_xyz": [4, 4, 4], "voxels": 8, "segments": 4, "threshold_and_encode_s": 0.1},
-               "views": [{"alpha": 1.0, "beta": 2.0, "seconds": {m: 1.0 for m in METHODS}}],
+               "views": [{"alpha": 1.0, "beta": 2.0, "seconds": {m: 1.0 for m in bench.timed_methods()}}],
                "pipeline": {"command": "c", "seconds": 1.0, "method": "ftb"},
-               "scaling": bench.bench_scaling(repeat=1, sizes=(8, 10))}
+               "scaling": bench.bench_scaling(repeat=1, sizes=(8, 10)),
+               "raycast": bench.bench_raycast(1, {"shell": (segments.encode(bench.thin_shell(24, 9.0)),
+                                                             View(30, 10, 0, (32, 32), 1.2))})}
     text = bench.markdown(results)
-    assert "| 1 | 2 |" in text and "fitted exponent" in text and "peers" in text
+    assert "| 1 | 2 |" in text and "fitted exponent" in text and "peers" in text and "| shell | adaptive |" in text
+    rows = results["raycast"]["shell"]["rows"]
+    assert rows["adaptive"]["leaks"] == 0 and rows["26"]["leaks"] > 0

@@ -107,7 +107,7 @@ def test_vpn_and_view_options(tmp_path, cube_folder):
 def test_samples_and_demo_match_the_golden_image(tmp_path):
     result = run("demo", "-o", tmp_path / "demo.png", "--samples-folder", tmp_path / "samples")
     assert result.exit_code == 0, result.output
-    assert {p.name for p in (tmp_path / "samples").iterdir()} == {"sphere", "torus", "shell", "staircase"}
+    assert {p.name for p in (tmp_path / "samples").iterdir()} == {"sphere", "torus", "shell", "staircase", "cylinder"}
     picture = iio.imread(tmp_path / "demo.png").astype(int)
     golden = iio.imread(ROOT / "tests" / "golden" / "demo.png").astype(int)
     assert picture.shape == golden.shape
@@ -119,6 +119,28 @@ def test_samples_render_at_their_threshold(tmp_path):
     assert run("samples", tmp_path, "--name", "staircase").exit_code == 0
     result = run("info", tmp_path / "staircase", "--threshold", SAMPLE_THRESHOLD, "--json")
     assert json.loads(result.output)["object_voxels"] == 11
+
+
+def test_lines_table_reproduces_table_1():
+    result = run("lines", "--table", "--trials", 100000, "--seed", 2)
+    assert result.exit_code == 0, result.output
+    rows = {}
+    for line in result.output.splitlines():
+        parts = line.split()
+        if parts and parts[0] in ("d6/d18", "d6/d26", "d18/d6", "d18/d26", "d26/d6", "d26/d18"):
+            rows[parts[0]] = parts
+    assert len(rows) == 6
+    for parts in rows.values():
+        assert abs(float(parts[-1])) <= 0.02  # mean ratio minus Table 1's analytical value
+
+
+def test_raycast_method_from_the_command_line(tmp_path, cube_folder):
+    stats = tmp_path / "s.json"
+    result = run("render", cube_folder, "--threshold", 500, "--method", "raycast", "--connectivity", "26",
+                 "--size", 40, "-o", tmp_path / "r.png", "--stats-json", stats)
+    assert result.exit_code == 0, result.output
+    report = json.loads(stats.read_text())["stats"]
+    assert report["connectivity"] == "26" and report["steps_6"] == 0 and "leaks" in report
 
 
 # ------------------------------------------------------------------ bad input

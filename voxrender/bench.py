@@ -12,7 +12,9 @@ It measures, on ``vhf_head`` at 300 HU (512 x 512 pictures at scale 1):
   when ``vtk`` is installed (``pip install -e '.[peers]'``);
 * the whole command, DICOM folder to PNG, in a fresh process;
 * the paper's section 6 analysis: render time against N for a sphere and for a
-  convoluted object (a gyroid), with fitted exponents.
+  convoluted object (a gyroid), with fitted exponents;
+* discrete ray casting with 6-, 26- and adaptive rays on a one-voxel-thick shell and on
+  vhf_head: steps, time, leaks and misses (the line-voxelization paper's trade-off).
 
 Results go to ``benchmark-results/results.md`` and ``results.json``.
 """
@@ -42,6 +44,13 @@ PAPER_VIEWS = [(-45.0, 15.0), (60.0, 120.0), (30.0, 10.0)]  # Fig. 10 (alpha, be
 RANDOM_VIEWS = [tuple(float(round(a, 1)) for a in pair)
                 for pair in np.random.default_rng(2026).uniform(-180, 180, size=(3, 2))]
 SCALING_SIZES = (64, 96, 128, 192, 256)
+# Discrete ray casting steps every ray voxel by voxel (seconds per picture, not tenths): it has its own
+# section, at 256 x 256, instead of the 512 x 512 view table and the scaling runs.
+OWN_SECTION = {"raycast"}
+
+
+def timed_methods():
+    return [m for m in METHODS if m not in OWN_SECTION]
 
 
 def median_seconds(work, repeat):
@@ -66,7 +75,7 @@ def bench_views(encoded, repeat, size=512, scale=1.0, peer=None, views=PAPER_VIE
     for alpha, beta in views:
         view = View(alpha, beta, 0.0, (size, size), scale)
         row = {"alpha": alpha, "beta": beta, "seconds": {}, "stats": {}}
-        for method in METHODS:
+        for method in timed_methods():
             seconds, image = median_seconds(lambda: render(encoded, view, method), repeat)
             row["seconds"][method] = seconds
             row["stats"][method] = image.stats
@@ -165,14 +174,14 @@ def bench_scaling(repeat, sizes=SCALING_SIZES):
             encoded = segments.encode(phantom(kind, n))
             view = View(30.0, 10.0, 0.0, (n, n), 1.0)
             row = {"n": n, "voxels": encoded.voxel_count}
-            for method in METHODS:
+            for method in timed_methods():
                 row[method] = median_seconds(lambda: render(encoded, view, method), repeat)[0]
             rows.append(row)
         exponents = {method: float(np.polyfit(np.log(sizes), np.log([r[method] for r in rows]), 1)[0])
-                     for method in METHODS}
+                     for method in timed_methods()}
         # The slope between the two largest sizes, where fixed per-slice costs matter least.
         last = {method: float(np.log(rows[-1][method] / rows[-2][method]) / np.log(sizes[-1] / sizes[-2]))
-                for method in METHODS}
+                for method in timed_methods()}
         result[kind] = {"rows": rows, "exponents": exponents, "exponents_largest": last}
     return result
 
@@ -189,8 +198,33 @@ def _views_table(rows, names):
     return lines
 
 
+def thin_shell(n=128, radius=50.0):
+    """A sphere one voxel thick: 26-connected rays slip through it."""
+    z, y, x = (np.mgrid[:n, :n, :n] - (n - 1) / 2).astype(np.float32)
+    return np.abs(np.sqrt(x * x + y * y + z * z) - radius) <= 0.5
+
+
+def bench_raycast(repeat, cases):
+    """Steps, time, leaks and misses of 6-, 26- and adaptive rays (Cohen-Or and Kaufman's trade-off)."""
+    from .render.raycast import render_raycast
+
+    result = {}
+    for name, (encoded, view) in cases.items():
+        rows = {}
+        for connectivity in ("6", "26", "adaptive"):
+            seconds, _ = median_seconds(lambda: render_raycast(encoded, view, connectivity=connectivity,
+                                                               compare=False), repeat)
+            _, stats = render_raycast(encoded, view, connectivity=connectivity, compare=True)
+            rows[connectivity] = {"seconds": seconds, "steps_26": stats["steps_26"], "steps_6": stats["steps_6"],
+                                  "rays_hit": stats["rays_hit"], "late_hits": stats["late_hits"],
+                                  "leaks": stats["leaks"], "misses": stats["misses"]}
+        result[name] = {"view": [view.alpha, view.beta, view.gamma, list(view.size), view.scale],
+                        "voxels": encoded.voxel_count, "rows": rows}
+    return result
+
+
 def markdown(results):
-    methods = list(METHODS)
+    methods = timed_methods()
     peers = ["vtk"] if results.get("vtk_version") else []
     lines = [f"voxrender benchmark, {results['when']}, {results['machine']}", "",
              f"vhf_head at {THRESHOLD:g} HU: grid {results['encode']['grid_xyz']} (x, y, z), "
@@ -209,6 +243,15 @@ def markdown(results):
     else:
         lines += ["", f"VTK {results['vtk_version']}: vtkFixedPointVolumeRayCastMapper, step opacity at the "
                   "threshold, nearest interpolation, sample distance 1 voxel, parallel projection, its own threads."]
+    if results.get("raycast"):
+        lines += ["", "Discrete ray casting (median seconds; leaks and misses against 6-rays, which meet the contract):",
+                  "", "| object | rays | time s | steps 26 | steps 6 | all steps | late hits | leaks | misses |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for name, case in results["raycast"].items():
+            for connectivity, row in case["rows"].items():
+                lines.append(f"| {name} | {connectivity} | {row['seconds']:.2f} | {row['steps_26']:,} | "
+                             f"{row['steps_6']:,} | {row['steps_26'] + row['steps_6']:,} | {row['late_hits']:,} | "
+                             f"{row['leaks']:,} | {row['misses']:,} |")
     pipeline = results["pipeline"]
     lines += ["", f"Whole command, DICOM folder to PNG, fresh process ({pipeline['method']}): "
               f"{pipeline['seconds']:.2f} s (`{pipeline['command']}`)", "",
@@ -247,7 +290,10 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
                      "views": bench_views(skin, repeat, views=PAPER_VIEWS)},
             "pipeline": bench_pipeline(path, max(1, repeat // 2)) if pipeline else {"command": "", "seconds": math.nan,
                                                                                    "method": DEFAULT_METHOD},
-            "scaling": bench_scaling(repeat, scaling_sizes)}
+            "scaling": bench_scaling(repeat, scaling_sizes),
+            "raycast": bench_raycast(min(repeat, 3), {
+                "thin shell 128^3": (segments.encode(thin_shell()), View(30.0, 10.0, 0.0, (256, 256), 1.5)),
+                f"vhf_head {THRESHOLD:g} HU": (encoded, View(30.0, 10.0, 0.0, (256, 256), 0.5))})}
 
 
 @click.command()

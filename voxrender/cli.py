@@ -16,7 +16,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from . import __version__, io, prep, samples, segments, shade
+from . import __version__, io, lines, prep, samples, segments, shade
 from .errors import InputError
 from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
 from .render import DEFAULT_METHOD, METHODS, Clip, render
@@ -180,6 +180,8 @@ def main():
 @click.option("--vpn", metavar="I,J,K", help="View plane normal (object x,y,z toward the viewer).")
 @click.option("--size", default="512", show_default=True, metavar="N|WxH", help="Image size in pixels.")
 @click.option("--scale", type=float, help="Pixels per voxel (default: fit the volume at any rotation).")
+@click.option("--connectivity", type=click.Choice(["6", "26", "adaptive"]), default="adaptive", show_default=True,
+              help="Discrete rays of --method raycast: 6, 26, or 26 switching to 6 near the object.")
 @click.option("--clip-x", metavar="A:B", help="Keep voxels with A <= x < B (object space, after resampling).")
 @click.option("--clip-y", metavar="A:B", help="Keep voxels with A <= y < B.")
 @click.option("--clip-z", metavar="A:B", help="Keep voxels with A <= z < B.")
@@ -197,7 +199,7 @@ def main():
               help="Save depth as a 16-bit PNG (near bright, background 0).")
 @click.option("--stats-json", type=click.Path(path_type=Path), metavar="FILE",
               help="Save timings and the renderer's statistics as JSON.")
-def render_command(input_path, output, method, clip_x, clip_y, clip_z, cut_depth, shading, light, background,
+def render_command(input_path, output, method, connectivity, clip_x, clip_y, clip_z, cut_depth, shading, light, background,
                    supersample, depth_out, depth_png, stats_json, **options):
     """Render INPUT (a slice folder, volume file or .vxs) to a shaded PNG."""
     started = time.perf_counter()
@@ -211,7 +213,8 @@ def render_command(input_path, output, method, clip_x, clip_y, clip_z, cut_depth
         if path is not None:
             io.check_writable(path)
     loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
-    image = render(loaded.segments, view, method, progress, supersample, clip if clip.active else None)
+    options = {"connectivity": connectivity} if method == "raycast" else {}
+    image = render(loaded.segments, view, method, progress, supersample, clip if clip.active else None, **options)
     shaded_at = time.perf_counter()
     rgb = shade.shade(image.depth, shading, image.view.scale, light, background=background)
     written_at = time.perf_counter()
@@ -301,6 +304,39 @@ def _describe(path, volume, prepare):
                     "object_fraction": round(encoded.voxel_count / mask.size, 6),
                     "segments": encoded.segment_count})
     return summary
+
+
+@main.command("lines")
+@click.option("--table", is_flag=True, help="Reproduce the paper's Tables 1 and 2 by experiment.")
+@click.option("--trials", default=100_000, show_default=True, type=click.IntRange(100, 10_000_000),
+              help="Random pairs of end points.")
+@click.option("--seed", default=0, show_default=True, type=int)
+@click.option("--side", default=100, show_default=True, type=click.IntRange(2, 100_000), help="Side of the voxel space.")
+def lines_command(table, trials, seed, side):
+    """Discrete 3-D lines: average d6, d18, d26 of random lines and their ratios (Cohen-Or and Kaufman)."""
+    if not table:
+        raise InputError("say what to compute: voxrender lines --table")
+    result = lines.metrics_table(trials, seed, side)
+    analytical = result["analytical_length"]
+    click.echo(f"{result['trials']} random lines in a {side}^3 voxel space (seed {seed})")
+    click.echo("")
+    click.echo("Table 2: average length   experimental   analytical")
+    for name in ("d6", "d18", "d26"):
+        expected = analytical.get(name)
+        click.echo(f"  {name:<24}{result['mean_length'][name]:>12.2f}   " +
+                   (f"{expected:>10.2f}" if expected is not None else f"{'':>10}"))
+    click.echo("")
+    click.echo("Table 1: ratio            mean ratio   ratio of means   analytical   difference")
+    for (a, b), expected in result["analytical_ratio"].items():
+        mean_ratio = result["mean_ratio"][(a, b)]
+        mark = "*" if (a, b) in lines.TABLE1_PRINTED else " "
+        click.echo(f"  {a + '/' + b:<22}{mean_ratio:>12.3f}   {result['ratio_of_means'][(a, b)]:>14.3f}   "
+                   f"{expected:>10.3f}{mark}  {mean_ratio - expected:>+10.3f}")
+    click.echo("")
+    click.echo("Table 1's analytical row is the mean of each ratio; the ratio of the means is its experimental row.")
+    for (a, b), printed in lines.TABLE1_PRINTED.items():
+        click.echo(f"* the paper prints {printed} for {a}/{b}; read as a swap of the digits of "
+                   f"{lines.TABLE1_ANALYTICAL[(a, b)]}, the mean of {a}/{b}")
 
 
 @main.command("samples")

@@ -14,7 +14,7 @@ import numpy as np
 
 from .io import atomic_output
 
-__all__ = ["SAMPLES", "sphere", "torus", "shell", "staircase", "write_samples", "STAIRCASE_VOXELS", "demo_picture",
+__all__ = ["SAMPLES", "sphere", "torus", "shell", "staircase", "cylinder", "write_samples", "STAIRCASE_VOXELS", "demo_picture",
            "DEMO_VIEW"]
 
 AIR, OBJECT = 40, 1040
@@ -96,7 +96,33 @@ def staircase():
     return _ct(inside)
 
 
-SAMPLES = {"sphere": sphere, "torus": torus, "shell": shell, "staircase": staircase}
+def cylinder(n=64, radius=None, axis=(0.25, 0.15, 0.8)):
+    """An oblique solid cylinder voxelized by sweeping (the line-voxelization paper's opening example).
+
+    A voxelized disc in the first slice is swept along a 26-connected 3-D line
+    (:func:`voxrender.lines.line26`): the cylinder is every disc voxel moved by every line voxel.
+
+    >>> v = cylinder(32)
+    >>> v.shape, bool(v[0, 7, 7] > 500), bool(v[-1, 7, 7] < 500)
+    ((32, 32, 32), True, True)
+    """
+    from .lines import line26
+
+    radius = 0.18 * n if radius is None else radius
+    centre = int(round(radius)) + 1
+    y, x = np.mgrid[-centre:centre + 1, -centre:centre + 1]
+    inside = x * x + y * y <= radius * radius
+    disc = np.stack([x[inside] + centre, y[inside] + centre, np.zeros(inside.sum(), int)], axis=1)
+    end = np.rint(np.array(axis) / np.array(axis)[2] * (n - 1)).astype(int)
+    end = np.minimum(end, n - 1 - 2 * centre)
+    end[2] = n - 1
+    swept = (disc[:, None, :] + line26((0, 0, 0), end)[None, :, :]).reshape(-1, 3)
+    inside = np.zeros((n, n, n), bool)
+    inside[swept[:, 2], swept[:, 1], swept[:, 0]] = True
+    return _ct(inside)
+
+
+SAMPLES = {"sphere": sphere, "torus": torus, "shell": shell, "staircase": staircase, "cylinder": cylinder}
 
 
 def write_slices(values, folder):

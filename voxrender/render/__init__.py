@@ -19,12 +19,14 @@ from .btf import render_btf
 from .clip import Clip
 from .ftb import render_ftb
 from .preimage import render_preimage
+from .raycast import render_raycast
 
 __all__ = ["METHODS", "DEFAULT_METHOD", "DepthImage", "Clip", "render", "render_preimage"]
 
 METHODS = {
     "ftb": render_ftb,
     "btf": render_btf,
+    "raycast": render_raycast,
 }
 DEFAULT_METHOD = "ftb"
 # Methods that render only alpha and beta (rows stay parallel to scanlines, Theorem 1);
@@ -47,11 +49,12 @@ class DepthImage:
         return np.isfinite(self.depth)
 
 
-def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, clip=None):
+def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, clip=None, **options):
     """Render ``segments`` with ``method`` from ``view`` (scale fitted when unset).
 
     ``supersample`` is the pre-image's scale factor for methods that apply gamma by
-    rotating a pre-image; ``clip`` is a :class:`Clip` (clip limits, cut plane) or ``None``.
+    rotating a pre-image; ``clip`` is a :class:`Clip` (clip limits, cut plane) or ``None``;
+    further ``options`` go to the method (``connectivity`` for ``raycast``).
 
     >>> from voxrender.segments import encode
     >>> image = render(encode(np.ones((3, 3, 3), bool)), View(size=(8, 8), scale=1.0))
@@ -67,5 +70,5 @@ def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, 
     if method in PREIMAGE_METHODS and view.gamma % 360:
         depth, stats = render_preimage(METHODS[method], segments, view, supersample, progress, clip)
     else:
-        depth, stats = METHODS[method](segments, view, progress=progress, clip=clip)
+        depth, stats = METHODS[method](segments, view, progress=progress, clip=clip, **options)
     return DepthImage(depth, view, method, stats, time.perf_counter() - started)

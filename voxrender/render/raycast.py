@@ -1,0 +1,201 @@
+"""Discrete ray casting with connectivity control (Cohen-Or and Kaufman, "Alternating between connectivities").
+
+One discrete ray per pixel of the view contract, all rays stepped together as
+arrays (:class:`voxrender.lines.Stepper`).  A 6-ray visits every voxel its
+continuous ray pierces, so its first object voxel is the contract's; a 26-ray takes
+about half the steps but may skip voxels, slipping through thin walls (a leak) or
+missing the object at its silhouette.  The adaptive ray steps as a 26-ray and
+switches to 6-connectivity (Eqs. 9-13) inside the proximity band, the object
+dilated by one voxel, and back when it leaves: since a 26-step from outside the
+band cannot reach the object, it never misses what the 6-ray finds.
+
+Each hit pixel takes the depth where its ray enters the hit voxel's cube.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..lines import Stepper
+from ..view import pixel_centres
+from .geometry import ray_box_entry
+
+__all__ = ["render_raycast", "CONNECTIVITIES", "proximity_band"]
+
+CONNECTIVITIES = ("6", "26", "adaptive")
+
+
+def proximity_band(mask):
+    """The object dilated by one voxel (26-neighbourhood): where adaptive rays slow down to 6-connectivity.
+
+    The 3 x 3 x 3 dilation is done as three one-voxel dilations along the axes with
+    shifted ORs: the same result as ``skimage.morphology.dilation`` with a cube, about
+    ten times faster on a CT head (0.2 s against 2.4 s for 61 M voxels).
+
+    >>> int(proximity_band(np.pad(np.ones((1, 1, 1), bool), 2)).sum())
+    27
+    """
+    band = mask.copy()
+    for axis in range(3):
+        grown = band.copy()
+        lead = [slice(None)] * 3
+        trail = [slice(None)] * 3
+        lead[axis], trail[axis] = slice(1, None), slice(None, -1)
+        grown[tuple(lead)] |= band[tuple(trail)]
+        grown[tuple(trail)] |= band[tuple(lead)]
+        band = grown
+    return band
+
+
+def _cast(mask, band, view, connectivity, progress=None):
+    """Step every pixel's ray through ``mask``; return the hit voxel per pixel (or -1) and the step counts."""
+    nz, ny, nx = mask.shape
+    matrix = view.matrix
+    height, width = view.size
+    xs, ys = pixel_centres(view)
+    big_x, big_y = np.meshgrid(xs, ys)
+    centre = (np.array([nx, ny, nz]) - 1) / 2
+    origins = centre + big_x.reshape(-1, 1) * matrix[0] + big_y.reshape(-1, 1) * matrix[1]
+    direction = np.where(np.abs(matrix[2]) < 1e-12, 1e-12, matrix[2])
+    # Clip every ray to the volume's box of cubes.
+    low, high = -0.5 - origins, np.array([nx, ny, nz]) - 0.5 - origins
+    near, far = np.minimum(low / direction, high / direction), np.maximum(low / direction, high / direction)
+    t_in, t_out = near.max(axis=1), far.min(axis=1)
+    rays = np.flatnonzero(t_in < t_out)
+    inset = 1e-7 * np.sign(t_out[rays] - t_in[rays])
+    starts = origins[rays] + (t_in[rays] + inset)[:, None] * matrix[2]
+    ends = origins[rays] + (t_out[rays] - inset)[:, None] * matrix[2]
+    # A ray that runs exactly along a face between two voxel columns meets both closed cubes (the
+    # contract); the discrete line follows the upper one, and the lower one is looked up beside it.
+    fraction = (starts + 0.5) % 1.0
+    on_face = (np.abs(matrix[2]) < 1e-12) & (np.minimum(fraction, 1 - fraction) < 1e-9)
+    starts = np.where(on_face, np.round(starts + 0.5) - 0.5, starts)
+    ends = np.where(on_face, starts, ends)
+    stepper = Stepper(np.clip(starts, -0.5 + 1e-9, np.array([nx, ny, nz]) - 0.5 - 1e-9), ends)
+    twins = []
+    for offset in (np.array(o) for o in np.ndindex(2, 2, 2) if any(o)):
+        rays_on = np.all(on_face[:, offset > 0], axis=1)
+        if rays_on.any():
+            twins.append((-offset, rays_on))
+    hit_voxel = np.full((height * width, 3), -1, np.int64)
+    steps = {"26": 0, "6": 0}
+    iterations = 0
+    while len(rays):
+        voxel = stepper.voxels
+        x, y, z = voxel.T
+        inside = (x >= 0) & (x < nx) & (y >= 0) & (y < ny) & (z >= 0) & (z < nz)
+        occupied = np.zeros(len(rays), bool)
+        occupied[inside] = mask[z[inside], y[inside], x[inside]]
+        for offset, rays_on in twins:
+            beside = voxel + offset
+            bx, by, bz = beside.T
+            look = rays_on & ~occupied & (bx >= 0) & (by >= 0) & (bz >= 0) & inside
+            found = np.zeros(len(rays), bool)
+            found[look] = mask[bz[look], by[look], bx[look]]
+            voxel = np.where(found[:, None], beside, voxel)
+            occupied |= found
+        hit_voxel[rays[occupied]] = voxel[occupied]
+        going = inside & ~occupied
+        if going.sum() < 0.8 * len(rays):  # drop finished rays now and then, not every step
+            keep = going
+            rays, stepper, voxel, going = rays[keep], stepper.subset(keep), voxel[keep], going[keep]
+            twins = [(offset, rays_on[keep]) for offset, rays_on in twins]
+        x, y, z = (np.where(going, c, 0) for c in voxel.T)
+        if connectivity == "6":
+            six = np.ones(len(rays), bool)
+        elif connectivity == "26":
+            six = np.zeros(len(rays), bool)
+        else:
+            six = band[z, y, x]
+        six &= going
+        taken_26, taken_6 = stepper.step(going, six)
+        steps["26"] += taken_26
+        steps["6"] += taken_6
+        iterations += 1
+    return hit_voxel, steps, iterations
+
+
+def render_raycast(segments, view, progress=None, clip=None, connectivity="adaptive", compare=None):
+    """Discrete ray casting with 6-, 26- or adaptive connectivity.
+
+    Parameters
+    ----------
+    segments : Segments
+    view : View
+    progress : callable, optional
+    clip : Clip, optional
+    connectivity : {"6", "26", "adaptive"}
+    compare : bool, optional
+        Also cast 6-rays and report where this connectivity falls behind them: ``late_hits``
+        (the ray skipped a surface voxel and met the object up to a cube's diagonal farther),
+        ``leaks`` (it went through the object: a hit farther than that, or none) and
+        ``misses`` (no hit where the 6-ray hits; silhouette misses are among them).
+        Default: when ``connectivity`` is not 6.
+
+    Returns
+    -------
+    depth : ndarray of float32, (H, W)
+    stats : dict
+        ``rays``, ``rays_hit``, ``steps_26``, ``steps_6``, ``iterations``; with ``compare``
+        also ``late_hits``, ``leaks``, ``misses``, ``leak_pixels`` (up to 1000 [row, column] pairs) and
+        ``reference_seconds`` (the 6-ray pass, not part of this method's time).
+
+    Examples
+    --------
+    >>> from voxrender.segments import encode
+    >>> from voxrender.view import View
+    >>> depth, stats = render_raycast(encode(np.ones((2, 2, 2), bool)), View(size=(4, 4), scale=1.0), connectivity="6")
+    >>> depth[1:3, 1:3].tolist(), stats["rays_hit"]
+    ([[-1.0, -1.0], [-1.0, -1.0]], 4)
+    """
+    connectivity = str(connectivity)
+    if connectivity not in CONNECTIVITIES:
+        from ..errors import InputError
+
+        raise InputError(f"--connectivity {connectivity!r}: choose 6, 26 or adaptive")
+    mask = segments.to_mask()
+    if clip is not None and clip.active:
+        mask = clip.apply_mask(mask, view.matrix)
+    band = proximity_band(mask) if connectivity == "adaptive" else None
+    hit_voxel, steps, iterations = _cast(mask, band, view, connectivity, progress)
+    depth = _depth(hit_voxel, view, mask.shape)
+    hit = hit_voxel[:, 0] >= 0
+    stats = {"connectivity": connectivity, "rays": int(view.size[0] * view.size[1]), "rays_hit": int(hit.sum()),
+             "steps_26": steps["26"], "steps_6": steps["6"], "iterations": iterations}
+    if compare is None:
+        compare = connectivity != "6"
+    if compare:
+        started = time.perf_counter()
+        reference = _depth(_cast(mask, None, view, "6")[0], view, mask.shape).ravel()
+        stats["reference_seconds"] = time.perf_counter() - started
+        # Against the 6-ray: a late hit entered the object up to a cube's diagonal farther (a skipped
+        # surface voxel); a leak went through it (a hit farther than that, or none); a miss is no hit.
+        found = np.isfinite(reference)
+        ours = depth.ravel()
+        with np.errstate(invalid="ignore"):  # inf - inf where neither meets the object
+            behind = ours - reference
+        leaks = found & ~(behind <= 3 ** 0.5 + 1e-6)
+        rows, columns = np.divmod(np.flatnonzero(leaks), view.size[1])
+        stats["late_hits"] = int((found & (behind > 1e-6) & (behind <= 3 ** 0.5 + 1e-6)).sum())
+        stats["leaks"] = int(leaks.sum())
+        stats["misses"] = int((found & ~np.isfinite(ours)).sum())
+        stats["leak_pixels"] = np.stack([rows, columns], axis=1)[:1000].tolist()
+    return depth, stats
+
+
+def _depth(hit_voxel, view, shape):
+    """Depth where each pixel's ray enters the cube of its hit voxel (``+inf`` where none)."""
+    nz, ny, nx = shape
+    height, width = view.size
+    matrix = view.matrix
+    depth = np.full(height * width, np.inf)
+    hit = np.flatnonzero(hit_voxel[:, 0] >= 0)
+    if len(hit):
+        centres = matrix @ (hit_voxel[hit] - (np.array([nx, ny, nz]) - 1) / 2).T
+        xs, ys = pixel_centres(view)
+        rows, columns = np.divmod(hit, width)
+        _, entry = ray_box_entry(xs[columns] - centres[0], ys[rows] - centres[1], matrix)
+        depth[hit] = centres[2] + entry
+    return depth.reshape(height, width).astype(np.float32)
