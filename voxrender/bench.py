@@ -14,7 +14,9 @@ It measures, on ``vhf_head`` at 300 HU (512 x 512 pictures at scale 1):
 * the paper's section 6 analysis: render time against N for a sphere and for a
   convoluted object (a gyroid), with fitted exponents;
 * discrete ray casting with 6-, 26- and adaptive rays on a one-voxel-thick shell and on
-  vhf_head: steps, time, leaks and misses (the line-voxelization paper's trade-off).
+  vhf_head: steps, time, leaks and misses (the line-voxelization paper's trade-off);
+* a 36-view turntable of vhf_head at 512 x 512 as one batch (1 and 2 workers) against 36
+  separate ``voxrender render`` commands.
 
 Results go to ``benchmark-results/results.md`` and ``results.json``.
 """
@@ -223,6 +225,36 @@ def bench_raycast(repeat, cases):
     return result
 
 
+def bench_batch(path, views=36, size=512, separate=True):
+    """A turntable of ``views`` pictures: one batch with 1 and 2 workers against separate render commands."""
+    from .batch import items_from, parse_views, run_batch, RenderOptions
+    from .pipeline import PrepOptions, ReadOptions
+
+    result = {"views": views, "size": size}
+    turn = parse_views(turntable_count=views)
+    with tempfile.TemporaryDirectory() as folder:
+        for jobs in (1, 2):
+            items = items_from([str(path)], [], ReadOptions(), PrepOptions(threshold=THRESHOLD), DEFAULT_METHOD,
+                               turn, "{name}/{view}.png")
+            started = time.perf_counter()
+            rows = run_batch(items, f"{folder}/jobs{jobs}", RenderOptions(size=(size, size)), jobs=jobs,
+                             cache_dir=f"{folder}/cache{jobs}")
+            seconds = time.perf_counter() - started
+            assert all(r["status"] == "ok" for r in rows)
+            result[f"batch_{jobs}_s"] = seconds
+            result[f"batch_{jobs}_images_per_s"] = views / seconds
+        if separate:
+            started = time.perf_counter()
+            for k, view in enumerate(turn):
+                subprocess.run([sys.executable, "-m", "voxrender.cli", "render", str(path), "--threshold",
+                                str(THRESHOLD), "--alpha", str(view.alpha), "--beta", str(view.beta), "--gamma",
+                                str(view.gamma), "--size", str(size), "-o", f"{folder}/single{k}.png"],
+                               check=True, capture_output=True)
+            result["separate_s"] = time.perf_counter() - started
+            result["separate_images_per_s"] = views / result["separate_s"]
+    return result
+
+
 def markdown(results):
     methods = timed_methods()
     peers = ["vtk"] if results.get("vtk_version") else []
@@ -252,6 +284,17 @@ def markdown(results):
                 lines.append(f"| {name} | {connectivity} | {row['seconds']:.2f} | {row['steps_26']:,} | "
                              f"{row['steps_6']:,} | {row['steps_26'] + row['steps_6']:,} | {row['late_hits']:,} | "
                              f"{row['leaks']:,} | {row['misses']:,} |")
+    if results.get("batch"):
+        b = results["batch"]
+        lines += ["", f"Batch: a {b['views']}-view turntable of vhf_head at {b['size']} x {b['size']} "
+                  f"(read and encoded once):", "", "| how | seconds | pictures per second |", "|---|---|---|",
+                  f"| `voxrender batch --turntable {b['views']} --jobs 1` | {b['batch_1_s']:.1f} | "
+                  f"{b['batch_1_images_per_s']:.2f} |",
+                  f"| `voxrender batch --turntable {b['views']} --jobs 2` | {b['batch_2_s']:.1f} | "
+                  f"{b['batch_2_images_per_s']:.2f} |"]
+        if "separate_s" in b:
+            lines.append(f"| {b['views']} separate `voxrender render` commands | {b['separate_s']:.1f} | "
+                         f"{b['separate_images_per_s']:.2f} |")
     pipeline = results["pipeline"]
     lines += ["", f"Whole command, DICOM folder to PNG, fresh process ({pipeline['method']}): "
               f"{pipeline['seconds']:.2f} s (`{pipeline['command']}`)", "",
@@ -291,6 +334,7 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
             "pipeline": bench_pipeline(path, max(1, repeat // 2)) if pipeline else {"command": "", "seconds": math.nan,
                                                                                    "method": DEFAULT_METHOD},
             "scaling": bench_scaling(repeat, scaling_sizes),
+            "batch": bench_batch(path),
             "raycast": bench_raycast(min(repeat, 3), {
                 "thin shell 128^3": (segments.encode(thin_shell()), View(30.0, 10.0, 0.0, (256, 256), 1.5)),
                 f"vhf_head {THRESHOLD:g} HU": (encoded, View(30.0, 10.0, 0.0, (256, 256), 0.5))})}

@@ -16,7 +16,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from . import __version__, io, lines, prep, samples, segments, shade
+from . import __version__, batch, io, lines, prep, samples, segments, shade
 from .errors import InputError
 from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
 from .render import DEFAULT_METHOD, METHODS, Clip, render
@@ -304,6 +304,82 @@ def _describe(path, volume, prepare):
                     "object_fraction": round(encoded.voxel_count / mask.size, 6),
                     "segments": encoded.segment_count})
     return summary
+
+
+class _BatchBar:
+    """A click progress bar over a whole batch (stderr, terminals only)."""
+
+    def __init__(self, length):
+        self.bar = click.progressbar(length=length, label="batch", file=sys.stderr) if sys.stderr.isatty() else None
+        if self.bar:
+            self.bar.__enter__()
+
+    def update(self, n):
+        if self.bar:
+            self.bar.update(n)
+
+    def close(self):
+        if self.bar:
+            self.bar.__exit__(None, None, None)
+
+
+@main.command("batch")
+@click.argument("inputs", nargs=-1, metavar="[INPUT|GLOB]...")
+@click.option("-o", "--out", "out_dir", required=True, type=click.Path(path_type=Path),
+              help="Folder for the pictures and summary.csv.")
+@click.option("--manifest", type=click.Path(path_type=Path), help="CSV or TOML: input, threshold, views, method, output.")
+@click.option("--format", "format", default="auto", show_default=True, type=click.Choice(io.FORMATS))
+@click.option("--raw", metavar="WxH:DTYPE:ENDIAN")
+@click.option("--spacing", metavar="X,Y,Z")
+@click.option("--series", metavar="UID")
+@_prep_options_decorator
+@click.option("--method", default=DEFAULT_METHOD, show_default=True, type=click.Choice(sorted(METHODS)))
+@click.option("--view", "views", multiple=True, type=click.Choice(list(PRESETS)), help="A named view (repeatable).")
+@click.option("--angles", multiple=True, metavar="A,B,G", help="alpha,beta,gamma in degrees (repeatable).")
+@click.option("--turntable", type=click.IntRange(1, 3600), metavar="N",
+              help="N views turning the object about --axis, from the first view given (default anterior).")
+@click.option("--axis", default="z", show_default=True, type=click.Choice(["x", "y", "z"]))
+@click.option("--pattern", default="{name}/{view}.png", show_default=True,
+              help="Output names under --out: {name}, {view}, {method}, {index}.")
+@click.option("--size", default="512", show_default=True, metavar="N|WxH")
+@click.option("--scale", type=float)
+@click.option("--shading", default="gradient", show_default=True, type=click.Choice(["gradient", "depth"]))
+@click.option("--background", default="black", show_default=True, metavar="GREY|R,G,B")
+@click.option("--gif", is_flag=True, help="Also write each input's views as an animated GIF.")
+@click.option("--mp4", is_flag=True, help="Also write each input's views as an MP4 (extra 'video').")
+@click.option("--fps", default=12, show_default=True, type=click.IntRange(1, 120))
+@click.option("--jobs", type=click.IntRange(1, 1024), help="Worker processes (default: the machine's cores).")
+@click.option("--scheduler", metavar="ADDRESS|local", help="Run on a Dask cluster ('local' starts one here).")
+@click.option("--cache", type=click.Path(path_type=Path), help="Cache of encoded objects (default OUT/.voxrender-cache).")
+def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pattern, size, scale, shading,
+                  background, gif, mp4, fps, jobs, scheduler, cache, method, **options):
+    """Render many inputs from many views: pictures, an optional animation, and summary.csv.
+
+    Each input is encoded once (and cached); a failing input is reported and the others go on;
+    a re-run skips the pictures already made.
+    """
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(f"--out {out_dir} is a file; give a folder")
+    if scale is not None and scale <= 0:
+        raise InputError(f"--scale {scale} must be a positive number of pixels per voxel")
+    read = _read_options(options)
+    prepare = _prep_options(options)
+    rows = batch.read_manifest(manifest) if manifest else []
+    items = batch.items_from(batch.expand_inputs(inputs), rows, read, prepare, method,
+                             batch.parse_views(views, angles, turntable, axis), pattern)
+    render_options = batch.RenderOptions(_parse_size(size), scale, shading, background=shade.parse_colour(background))
+    animations = [kind for kind, wanted in (("gif", gif), ("mp4", mp4)) if wanted]
+    started = time.perf_counter()
+    summary = batch.run_batch(items, out_dir, render_options, jobs, scheduler, cache, animations, fps, _BatchBar)
+    made = sum(r["status"] == "ok" for r in summary)
+    earlier = sum(r["status"] == "done earlier" for r in summary)
+    failed = {r["input"]: r["error"] for r in summary if r["status"] == "failed"}
+    click.echo(f"{out_dir}: {made} pictures made, {earlier} done earlier, {len(summary) - made - earlier} failed, "
+               f"in {time.perf_counter() - started:.1f} s; summary in {out_dir / 'summary.csv'}")
+    for path, error in failed.items():
+        click.echo(f"failed: {path}: {error}", err=True)
+    if failed:
+        sys.exit(2)
 
 
 @main.command("lines")

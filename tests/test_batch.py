@@ -1,0 +1,153 @@
+import csv
+import json
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from voxrender import batch
+from voxrender.cli import main
+from voxrender.errors import InputError
+from voxrender.pipeline import PrepOptions
+from voxrender.view import PRESETS, rotation_matrix
+
+
+@pytest.fixture
+def stacks(tmp_path):
+    """Two small volumes as .npy files and one broken input."""
+    folder = tmp_path / "in"
+    folder.mkdir()
+    zz, yy, xx = np.mgrid[:20, :22, :24]
+    np.save(folder / "ball.npy", ((xx - 12) ** 2 + (yy - 11) ** 2 + (zz - 10) ** 2 <= 49).astype(np.int16) * 1000)
+    np.save(folder / "box.npy", np.pad(np.full((6, 8, 10), 1000, np.int16), 5))
+    (folder / "broken.npy").write_bytes(b"not an array")
+    return folder
+
+
+def read_summary(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def items(paths, views=None):
+    return batch.items_from([str(p) for p in paths], [], batch.ReadOptions(), PrepOptions(threshold=500), "ftb",
+                            views or batch.parse_views(["anterior"], ["30,20,10"]), "{name}/{view}.png")
+
+
+def test_turntable_turns_the_object_about_its_axis():
+    views = batch.turntable(8, "z")
+    base = rotation_matrix(*PRESETS["anterior"])
+    for k, view in enumerate(views):
+        expected = base @ rotation_matrix(0, 0, 45 * k)
+        assert np.allclose(rotation_matrix(view.alpha, view.beta, view.gamma), expected, atol=1e-9)
+    assert len({v.label for v in views}) == 8
+
+
+def test_views_and_names():
+    assert [v.label for v in batch.parse_views()] == ["anterior"]
+    assert [v.label for v in batch.parse_views(["left"], turntable_count=3)][0] == "turn000"
+    with pytest.raises(InputError):
+        batch.parse_views(["left", "left"])
+    with pytest.raises(InputError):
+        batch.parse_views(["sideways"])
+    assert batch.unique_names(["x/ct", "y/ct", "z/a.npy"]) == ["ct", "ct-2", "a"]
+
+
+def test_manifests(tmp_path, stacks):
+    (tmp_path / "m.csv").write_text("input,threshold,views,method,output\n"
+                                    f"{stacks / 'ball.npy'},500,\"left;30,0,0\",btf,{{name}}-{{view}}.png\n"
+                                    "in/box.npy,,,,\n")
+    rows = batch.read_manifest(tmp_path / "m.csv")
+    made = batch.items_from([], rows, batch.ReadOptions(), PrepOptions(threshold=700), "ftb",
+                            batch.parse_views(), "{name}/{view}.png")
+    assert [v.label for v in made[0].views] == ["left", "a30_b0_g0"] and made[0].method == "btf"
+    assert made[0].prepare.threshold == 500 and made[1].prepare.threshold == 700
+    assert made[1].input == str(tmp_path / "in" / "box.npy")
+    (tmp_path / "m.toml").write_text('[[input]]\ninput = "in/ball.npy"\nviews = "superior"\n')
+    assert batch.read_manifest(tmp_path / "m.toml")[0]["views"] == "superior"
+    (tmp_path / "bad.csv").write_text("path\nx\n")
+    with pytest.raises(InputError, match="'input' column"):
+        batch.read_manifest(tmp_path / "bad.csv")
+
+
+def test_batch_renders_reports_failures_and_resumes(tmp_path, stacks):
+    out = tmp_path / "out"
+    work = items([stacks / "ball.npy", stacks / "broken.npy", stacks / "box.npy"])
+    rows = batch.run_batch(work, out, batch.RenderOptions(size=(40, 48)), jobs=1)
+    assert [r["status"] for r in rows] == ["ok", "ok", "failed", "failed", "ok", "ok"]
+    assert "broken.npy" in rows[2]["error"]
+    summary = read_summary(out / "summary.csv")
+    assert len(summary) == 6 and summary[0]["view"] == "anterior" and json.loads(summary[0]["stats"])["pixels_lit"] > 0
+    picture = iio.imread(out / "ball" / "a30_b20_g10.png")
+    assert picture.shape == (40, 48, 3) and picture.any()
+    assert len(list((out / ".voxrender-cache").glob("*.vxs"))) == 2
+
+    # A run killed half-way leaves whole pictures only; a truncated or missing one is made again.
+    (out / "box" / "anterior.png").unlink()
+    (out / "ball" / "anterior.png").write_bytes((out / "ball" / "anterior.png").read_bytes()[:50])
+    again = batch.run_batch(work, out, batch.RenderOptions(size=(40, 48)), jobs=1)
+    assert [r["status"] for r in again] == ["ok", "done earlier", "failed", "failed", "ok", "done earlier"]
+    assert iio.imread(out / "ball" / "anterior.png").shape == (40, 48, 3)
+
+
+def test_cache_is_keyed_by_content_and_options(tmp_path, stacks):
+    read = batch.ReadOptions()
+    key = batch.cache_key(stacks / "ball.npy", read, PrepOptions(threshold=500))
+    assert key == batch.cache_key(stacks / "ball.npy", read, PrepOptions(threshold=500))
+    assert key != batch.cache_key(stacks / "ball.npy", read, PrepOptions(threshold=501))
+    np.save(tmp_path / "copy.npy", np.load(stacks / "ball.npy") + 1)
+    assert key != batch.cache_key(tmp_path / "copy.npy", read, PrepOptions(threshold=500))
+
+
+def test_worker_processes_give_the_same_pictures(tmp_path, stacks):
+    work = items([stacks / "ball.npy", stacks / "box.npy"])
+    batch.run_batch(work, tmp_path / "one", batch.RenderOptions(size=(32, 32)), jobs=1)
+    batch.run_batch(work, tmp_path / "two", batch.RenderOptions(size=(32, 32)), jobs=2)
+    for name in ("ball/anterior.png", "box/a30_b20_g10.png"):
+        assert np.array_equal(iio.imread(tmp_path / "one" / name), iio.imread(tmp_path / "two" / name))
+
+
+def test_local_dask_cluster(tmp_path, stacks):
+    pytest.importorskip("distributed", reason="Dask is the extra 'distributed'")
+    work = items([stacks / "ball.npy", stacks / "broken.npy"])
+    rows = batch.run_batch(work, tmp_path / "dask", batch.RenderOptions(size=(32, 32)), jobs=2, scheduler="local")
+    assert [r["status"] for r in rows] == ["ok", "ok", "failed", "failed"]
+    reference = tmp_path / "ref"
+    batch.run_batch(work[:1], reference, batch.RenderOptions(size=(32, 32)), jobs=1)
+    assert np.array_equal(iio.imread(tmp_path / "dask" / "ball" / "anterior.png"),
+                          iio.imread(reference / "ball" / "anterior.png"))
+
+
+def test_turntable_animation(tmp_path, stacks):
+    work = items([stacks / "ball.npy"], batch.parse_views(turntable_count=6))
+    batch.run_batch(work, tmp_path, batch.RenderOptions(size=(24, 24)), jobs=1, animations=["gif"])
+    frames = iio.imread(tmp_path / "ball.gif")
+    assert frames.shape[:3] == (6, 24, 24)
+
+
+def test_mp4_animation(tmp_path, stacks):
+    pytest.importorskip("imageio_ffmpeg", reason="MP4 is the extra 'video'")
+    work = items([stacks / "ball.npy"], batch.parse_views(turntable_count=4))
+    batch.run_batch(work, tmp_path, batch.RenderOptions(size=(32, 32)), jobs=1, animations=["mp4"])
+    assert (tmp_path / "ball.mp4").stat().st_size > 0
+
+
+def test_patterns_are_checked(tmp_path, stacks):
+    work = items([stacks / "ball.npy"])
+    work[0].pattern = "{name}.png"
+    with pytest.raises(InputError, match="twice"):
+        batch.run_batch(work, tmp_path, jobs=1)
+    work[0].pattern = "{nope}/{view}.png"
+    with pytest.raises(InputError, match="not valid"):
+        batch.run_batch(work, tmp_path, jobs=1)
+
+
+def test_batch_command(tmp_path, stacks):
+    result = CliRunner().invoke(main, ["batch", str(stacks / "*.npy"), "--threshold", "500", "--view", "left",
+                                       "--size", "32", "-o", str(tmp_path / "o"), "--jobs", "1"])
+    assert result.exit_code == 2
+    assert "2 pictures made" in result.output and "failed: " in result.stderr and "broken.npy" in result.stderr
+    assert len(read_summary(tmp_path / "o" / "summary.csv")) == 3
+    result = CliRunner().invoke(main, ["batch", str(tmp_path / "nothing*"), "-o", str(tmp_path / "o")])
+    assert result.exit_code == 2 and "no input matches" in result.stderr

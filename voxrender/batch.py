@@ -1,0 +1,496 @@
+"""Batch rendering: many stacks, many views, one command, on one machine or a Dask cluster.
+
+A batch is a list of :class:`Item` (an input with its preprocessing, method and views).
+It runs in two phases of independent tasks:
+
+1. *encode*: each input that still has a picture to make is read, thresholded and encoded
+   once, into a cache of ``.vxs`` files keyed by the input's content and the options that
+   shape the object (a re-run, or another batch over the same data, reuses it);
+2. *render*: each (input, view) loads the cached segments (memory-mapped) and writes its PNG.
+
+Tasks run in worker processes (``jobs``) or on a Dask cluster (``scheduler``); a failing
+input is recorded and the others go on; every picture is written atomically, and a
+re-run skips the pictures that exist and are valid.  One summary row per picture.
+Memory: a worker holds one volume (and its mask) while it encodes, and only memory-mapped
+segments and one picture while it renders, so the peak is about ``jobs`` times the largest
+volume plus its mask.
+"""
+
+from __future__ import annotations
+
+import csv
+import glob
+import hashlib
+import json
+import os
+import time
+import tomllib
+import traceback
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__, io, segments, shade
+from .errors import InputError
+from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
+from .render import DEFAULT_METHOD, METHODS, render
+from .view import PRESETS, View, angles_from_matrix, rotation_matrix
+
+__all__ = ["ViewSpec", "RenderOptions", "Item", "parse_views", "turntable", "expand_inputs", "read_manifest",
+           "cache_key", "run_batch", "SUMMARY_COLUMNS"]
+
+SUMMARY_COLUMNS = ["input", "name", "view", "alpha", "beta", "gamma", "method", "output", "status", "error",
+                   "load_s", "prepare_s", "render_s", "shade_s", "write_s", "total_s", "stats"]
+
+
+@dataclass(frozen=True)
+class ViewSpec:
+    """A named view of a batch (angles in degrees)."""
+
+    label: str
+    alpha: float
+    beta: float
+    gamma: float = 0.0
+
+
+def turntable(count, axis="z", base=(90.0, 0.0, 0.0)):
+    """``count`` views turning the object about an object axis, starting at ``base`` (default: anterior).
+
+    Each frame is the base rotation after a turn of the object about ``axis``; Theorem 2 turns
+    that rotation back into angles.
+
+    >>> [v.label for v in turntable(3)]
+    ['turn000', 'turn001', 'turn002']
+    >>> round(turntable(4)[1].beta, 6)
+    -90.0
+    """
+    if count < 1:
+        raise InputError("--turntable needs at least 1 view")
+    if axis not in ("x", "y", "z"):
+        raise InputError(f"--axis {axis!r} must be x, y or z")
+    base_matrix = rotation_matrix(*base)
+    views = []
+    for k in range(count):
+        angle = 360.0 * k / count
+        turn = {"x": rotation_matrix(angle, 0, 0), "y": rotation_matrix(0, angle, 0),
+                "z": rotation_matrix(0, 0, angle)}[axis]
+        alpha, beta, gamma = angles_from_matrix(base_matrix @ turn)
+        views.append(ViewSpec(f"turn{k:03d}", alpha, beta, gamma))
+    return views
+
+
+def parse_views(names=(), angles=(), turntable_count=None, axis="z"):
+    """Views from preset names, ``"a,b,g"`` angle triples and a turntable; the anterior view when none.
+
+    >>> [(v.label, v.alpha) for v in parse_views(["left"], ["30,10,0"])]
+    [('left', 90.0), ('a30_b10_g0', 30.0)]
+    """
+    views = []
+    for name in names:
+        if name not in PRESETS:
+            raise InputError(f"unknown view {name!r}; choose one of {', '.join(PRESETS)}")
+        views.append(ViewSpec(name, *PRESETS[name]))
+    for text in angles:
+        values = shade.parse_vector(text, "--angles")
+        views.append(ViewSpec("a{:g}_b{:g}_g{:g}".format(*values), *values))
+    if turntable_count:
+        first = views.pop(0) if views else ViewSpec("anterior", *PRESETS["anterior"])
+        views.extend(turntable(turntable_count, axis, (first.alpha, first.beta, first.gamma)))
+    if not views:
+        views.append(ViewSpec("anterior", *PRESETS["anterior"]))
+    labels = [v.label for v in views]
+    if len(set(labels)) != len(labels):
+        raise InputError("the same view is asked for twice; give each view once")
+    return views
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    """How every picture of a batch is made."""
+
+    size: tuple = (512, 512)
+    scale: float | None = None
+    shading: str = "gradient"
+    light: tuple = (0.0, 0.0, -1.0)
+    background: tuple = (0, 0, 0)
+    supersample: int = 2
+
+
+@dataclass
+class Item:
+    """One input of a batch: where it is, how to read and threshold it, how to render it, which views."""
+
+    input: str
+    name: str
+    read: ReadOptions = field(default_factory=ReadOptions)
+    prepare: PrepOptions = field(default_factory=PrepOptions)
+    method: str = DEFAULT_METHOD
+    views: list = field(default_factory=lambda: parse_views())
+    pattern: str = "{name}/{view}.png"
+
+    def output(self, out_dir, view, index):
+        return Path(out_dir) / self.pattern.format(name=self.name, view=view.label, method=self.method,
+                                                   index=index)
+
+
+def expand_inputs(patterns):
+    """Paths and glob patterns to existing paths, in order, each once.
+
+    >>> expand_inputs([])
+    []
+    """
+    found = []
+    for pattern in patterns:
+        matches = sorted(glob.glob(str(pattern))) if glob.has_magic(str(pattern)) else [str(pattern)]
+        if not matches:
+            raise InputError(f"no input matches {pattern!r}")
+        for match in matches:
+            if match not in found:
+                found.append(match)
+    return found
+
+
+def unique_names(paths):
+    """A short, distinct name per input: its folder or file name, numbered when two are the same.
+
+    >>> unique_names(["a/ct", "b/ct", "c/head.mha"])
+    ['ct', 'ct-2', 'head']
+    """
+    names, seen = [], {}
+    for path in paths:
+        base = Path(path).name if Path(path).is_dir() or not Path(path).suffix else Path(path).stem
+        base = base or "input"
+        seen[base] = seen.get(base, 0) + 1
+        names.append(base if seen[base] == 1 else f"{base}-{seen[base]}")
+    return names
+
+
+def read_manifest(path):
+    """Rows of a manifest: CSV with a header, or TOML with ``[[input]]`` tables.
+
+    Columns (all but ``input`` optional): ``input``, ``threshold``, ``views`` (preset names and
+    ``a,b,g`` triples separated by ``;``), ``method``, ``output`` (a pattern).  Relative inputs are
+    taken from the manifest's folder.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"no such manifest: {path}")
+    try:
+        if path.suffix.lower() == ".toml":
+            rows = tomllib.loads(path.read_text()).get("input", [])
+        else:
+            with open(path, newline="") as f:
+                rows = list(csv.DictReader(f))
+    except (tomllib.TOMLDecodeError, csv.Error, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read manifest {path}: {exc}") from None
+    if not rows or any("input" not in row or not str(row["input"]).strip() for row in rows):
+        raise InputError(f"manifest {path} needs an 'input' column (CSV header) or [[input]] tables (TOML), "
+                         "with a path in every row")
+    for row in rows:
+        if not Path(row["input"]).is_absolute():
+            row["input"] = str(path.parent / row["input"])
+    return rows
+
+
+def items_from(inputs, manifest_rows, read, prepare, method, views, pattern):
+    """The batch's items: one per input path, then one per manifest row (its columns override)."""
+    rows = [{"input": p} for p in inputs] + list(manifest_rows)
+    if not rows:
+        raise InputError("no inputs: give paths, globs or --manifest")
+    names = unique_names([row["input"] for row in rows])
+    items = []
+    for row, name in zip(rows, names):
+        item_views = views
+        if str(row.get("views") or "").strip():
+            parts = [p.strip() for p in str(row["views"]).split(";") if p.strip()]
+            item_views = parse_views([p for p in parts if "," not in p], [p for p in parts if "," in p])
+        threshold = row.get("threshold")
+        item_prepare = prepare
+        if threshold not in (None, ""):
+            from .prep import parse_threshold
+
+            item_prepare = replace(prepare, threshold=parse_threshold(str(threshold)))
+        item_method = str(row.get("method") or method)
+        if item_method not in METHODS:
+            raise InputError(f"unknown method {item_method!r} for {row['input']}; choose one of {', '.join(METHODS)}")
+        items.append(Item(str(row["input"]), name, read, item_prepare, item_method, item_views,
+                          str(row.get("output") or pattern)))
+    return items
+
+
+def cache_key(path, read, prepare):
+    """Hex digest of the input's content (every file's name and bytes) and the options that shape the object."""
+    digest = hashlib.sha256()
+    path = Path(path)
+    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+    if path.suffix.lower() == ".mhd" and path.is_file():
+        files += [p for p in path.parent.iterdir() if p.suffix.lower() in (".raw", ".zraw")]
+    for file in files:
+        digest.update(str(file.relative_to(path) if path.is_dir() else file.name).encode())
+        with open(file, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                digest.update(block)
+    digest.update(json.dumps([asdict(read), asdict(prepare), __version__], sort_keys=True, default=str).encode())
+    return digest.hexdigest()[:32]
+
+
+# ------------------------------------------------------------------ the two kinds of task (run in workers)
+
+def encode_task(item, cache_dir):
+    """Phase 1: the cached ``.vxs`` of ``item`` (made now if absent); returns a small report dict."""
+    started = time.perf_counter()
+    try:
+        if is_segments_file(item.input):
+            return {"input": item.input, "segments": item.input, "seconds": {"load": 0.0, "prepare": 0.0}}
+        key = cache_key(item.input, item.read, item.prepare)
+        target = Path(cache_dir) / f"{key}.vxs"
+        if target.is_file():
+            segments.load(target)  # a damaged cache file is made again
+            return {"input": item.input, "segments": str(target), "seconds": {"load": 0.0, "prepare": 0.0},
+                    "cached": True, "key_seconds": time.perf_counter() - started}
+        loaded = load_segments(item.input, item.read, item.prepare)
+        segments.save(loaded.segments, target)
+        return {"input": item.input, "segments": str(target), "seconds": loaded.seconds, "cached": False}
+    except InputError as exc:
+        return {"input": item.input, "error": str(exc)}
+    except Exception as exc:  # a bug must not stop the other inputs; it is reported in the summary
+        return {"input": item.input, "error": f"internal error: {type(exc).__name__}: {exc}",
+                "traceback": traceback.format_exc()}
+
+
+def render_task(item, view, index, segments_path, out_dir, options, encode_seconds):
+    """Phase 2: render one view of one input and write its PNG; returns its summary row."""
+    output = item.output(out_dir, view, index)
+    row = {"input": item.input, "name": item.name, "view": view.label, "alpha": view.alpha, "beta": view.beta,
+           "gamma": view.gamma, "method": item.method, "output": str(output)}
+    started = time.perf_counter()
+    try:
+        encoded = segments.load(segments_path)
+        picture = View(view.alpha, view.beta, view.gamma, options.size, options.scale)
+        image = render(encoded, picture, item.method, supersample=options.supersample)
+        shaded_at = time.perf_counter()
+        rgb = shade.shade(image.depth, options.shading, image.view.scale, options.light,
+                          background=options.background)
+        written_at = time.perf_counter()
+        output.parent.mkdir(parents=True, exist_ok=True)
+        io.write_png(output, rgb)
+        done = time.perf_counter()
+        row.update(status="ok", error="", load_s=encode_seconds.get("load", 0.0),
+                   prepare_s=encode_seconds.get("prepare", 0.0), render_s=image.seconds,
+                   shade_s=written_at - shaded_at, write_s=done - written_at, total_s=done - started,
+                   stats=json.dumps(image.stats, default=float))
+    except InputError as exc:
+        row.update(status="failed", error=str(exc))
+    except Exception as exc:  # reported in the summary; the batch goes on
+        row.update(status="failed", error=f"internal error: {type(exc).__name__}: {exc}")
+    return row
+
+
+def is_done(path, size):
+    """Whether ``path`` is a readable PNG of the expected ``size = (H, W)`` (a finished picture)."""
+    import imageio.v3 as iio
+
+    try:
+        return tuple(iio.imread(path, extension=".png").shape[:2]) == tuple(size)  # decodes it all
+    except Exception:  # missing, truncated or not a PNG: make it again
+        return False
+
+
+# ------------------------------------------------------------------ executors
+
+class _Inline:
+    """Runs tasks in this process, in order (jobs = 1)."""
+
+    def submit(self, fn, *args):
+        from concurrent.futures import Future
+
+        future = Future()
+        future.set_result(fn(*args))
+        return future
+
+    def as_completed(self, futures):
+        return iter(futures)
+
+    def close(self):
+        pass
+
+
+class _Processes:
+    def __init__(self, jobs):
+        from concurrent.futures import ProcessPoolExecutor
+
+        self.pool = ProcessPoolExecutor(max_workers=jobs)
+
+    def submit(self, fn, *args):
+        return self.pool.submit(fn, *args)
+
+    def as_completed(self, futures):
+        from concurrent.futures import as_completed
+
+        return as_completed(futures)
+
+    def close(self):
+        self.pool.shutdown(cancel_futures=True)
+
+
+class _Dask:
+    def __init__(self, scheduler, jobs):
+        try:
+            from distributed import Client, LocalCluster
+        except ImportError:
+            raise InputError("--scheduler needs Dask: pip install 'voxrender[distributed]'") from None
+        if scheduler == "local":
+            self.cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
+                                        dashboard_address=None)
+            self.client = Client(self.cluster)
+        else:
+            self.cluster = None
+            try:
+                self.client = Client(scheduler, timeout="10s")
+            except OSError as exc:
+                raise InputError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+
+    def submit(self, fn, *args):
+        return self.client.submit(fn, *args, pure=False)
+
+    def as_completed(self, futures):
+        from distributed import as_completed
+
+        return as_completed(futures)
+
+    def close(self):
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+
+
+def executor(jobs, scheduler=None):
+    if scheduler:
+        return _Dask(scheduler, jobs)
+    return _Inline() if jobs <= 1 else _Processes(jobs)
+
+
+# ------------------------------------------------------------------ the batch
+
+def run_batch(items, out_dir, options=None, jobs=None, scheduler=None, cache_dir=None, animations=(), fps=12,
+              progress=None):
+    """Run a batch; return the summary rows (also written to ``out_dir/summary.csv``).
+
+    Parameters
+    ----------
+    items : list of Item
+    out_dir : path
+        Pictures go here (named by each item's pattern), with ``summary.csv``.
+    options : RenderOptions
+    jobs : int
+        Worker processes (default: the machine's cores); with ``scheduler``, local Dask workers.
+    scheduler : str, optional
+        ``"local"`` for a local Dask cluster, or a scheduler address.
+    cache_dir : path, optional
+        Where encoded objects are kept (default ``out_dir/.voxrender-cache``).
+    animations : iterable of str
+        ``"gif"`` and/or ``"mp4"``: every item's views as one animation ``out_dir/{name}.gif``.
+    progress : callable, optional
+        ``progress(length)`` returning an object with ``update(n)`` and ``close()`` (a progress bar).
+    """
+    options = options or RenderOptions()
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    cache_dir = Path(cache_dir or out_dir / ".voxrender-cache")
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    jobs = jobs or os.cpu_count() or 1
+    _check_patterns(items, out_dir)
+    rows = {}
+    todo = {}
+    for item in items:
+        for index, view in enumerate(item.views):
+            output = item.output(out_dir, view, index)
+            if is_done(output, options.size):
+                rows[(item.input, view.label)] = {
+                    "input": item.input, "name": item.name, "view": view.label, "alpha": view.alpha,
+                    "beta": view.beta, "gamma": view.gamma, "method": item.method, "output": str(output),
+                    "status": "done earlier", "error": ""}
+            else:
+                todo.setdefault(id(item), (item, []))[1].append((index, view))
+    bar = progress(len(todo) + sum(len(v) for _, v in todo.values())) if progress else None
+    pool = executor(jobs, scheduler)
+    try:
+        encodes = {pool.submit(encode_task, item, str(cache_dir)): (item, views) for item, views in todo.values()}
+        renders = []
+        for future in pool.as_completed(list(encodes)):
+            item, views = encodes[future]
+            report = future.result()
+            if bar:
+                bar.update(1)
+            if "error" in report:
+                for index, view in views:
+                    rows[(item.input, view.label)] = {
+                        "input": item.input, "name": item.name, "view": view.label, "alpha": view.alpha,
+                        "beta": view.beta, "gamma": view.gamma, "method": item.method,
+                        "output": str(item.output(out_dir, view, index)), "status": "failed",
+                        "error": report["error"]}
+                if bar:
+                    bar.update(len(views))
+                continue
+            for index, view in views:
+                renders.append(pool.submit(render_task, item, view, index, report["segments"], str(out_dir),
+                                           options, report["seconds"]))
+        for future in pool.as_completed(renders):
+            row = future.result()
+            rows[(row["input"], row["view"])] = row
+            if bar:
+                bar.update(1)
+    finally:
+        pool.close()
+        if bar:
+            bar.close()
+    ordered = [rows[(item.input, view.label)] for item in items for view in item.views]
+    for kind in animations:
+        for item in items:
+            _animate(item, out_dir, options, kind, fps, ordered)
+    _write_summary(out_dir / "summary.csv", ordered)
+    return ordered
+
+
+def _check_patterns(items, out_dir):
+    outputs = {}
+    for item in items:
+        for index, view in enumerate(item.views):
+            try:
+                path = item.output(out_dir, view, index)
+            except (KeyError, IndexError, ValueError) as exc:
+                raise InputError(f"output pattern {item.pattern!r} is not valid: use {{name}}, {{view}}, "
+                                 f"{{method}}, {{index}} ({exc})") from None
+            if path.suffix.lower() != ".png":
+                raise InputError(f"output pattern {item.pattern!r} must end in .png")
+            if path in outputs:
+                raise InputError(f"output pattern {item.pattern!r} gives {path} twice; add {{name}} or {{view}}")
+            outputs[path] = True
+
+
+def _animate(item, out_dir, options, kind, fps, rows):
+    """Every view of ``item`` as one animation (only when all its pictures exist)."""
+    import imageio.v3 as iio
+
+    frames = [r["output"] for r in rows if r["input"] == item.input and r["status"] in ("ok", "done earlier")]
+    if len(frames) != len(item.views) or len(frames) < 2:
+        return
+    target = Path(out_dir) / f"{item.name}.{kind}"
+    pictures = np.stack([iio.imread(f) for f in frames])
+    try:
+        with io.atomic_output(target) as tmp:
+            if kind == "gif":
+                iio.imwrite(tmp, pictures, extension=".gif", duration=1000 / fps, loop=0)
+            else:
+                iio.imwrite(tmp, pictures, extension=".mp4", fps=fps, codec="libx264", macro_block_size=1)
+    except (ImportError, OSError, RuntimeError, ValueError) as exc:
+        raise InputError(f"cannot write {target}: {exc} (MP4 needs pip install 'voxrender[video]')") from None
+
+
+def _write_summary(path, rows):
+    with io.atomic_output(path) as tmp, open(tmp, "w", newline="") as f:
+        writer = csv.DictWriter(f, SUMMARY_COLUMNS, extrasaction="ignore")
+        writer.writeheader()
+        for row in rows:
+            writer.writerow({k: (f"{v:.4f}" if isinstance(v, float) else v) for k, v in row.items()})
