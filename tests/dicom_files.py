@@ -1,7 +1,6 @@
 """Small DICOM series written with pydicom, for reader tests."""
 
 import numpy as np
-import pydicom
 from pydicom.dataset import FileDataset, FileMetaDataset
 from pydicom.uid import CTImageStorage, ExplicitVRLittleEndian, generate_uid
 

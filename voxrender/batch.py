@@ -34,6 +34,7 @@ import numpy as np
 from . import __version__, io, segments, shade
 from .errors import InputError
 from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
+from .prep import parse_threshold
 from .render import DEFAULT_METHOD, METHODS, render
 from .view import PRESETS, View, angles_from_matrix, rotation_matrix
 
@@ -208,8 +209,6 @@ def items_from(inputs, manifest_rows, read, prepare, method, views, pattern):
         threshold = row.get("threshold")
         item_prepare = prepare
         if threshold not in (None, ""):
-            from .prep import parse_threshold
-
             item_prepare = replace(prepare, threshold=parse_threshold(str(threshold)))
         item_method = str(row.get("method") or method)
         if item_method not in METHODS:
@@ -396,11 +395,11 @@ def run_batch(items, out_dir, options=None, jobs=None, scheduler=None, cache_dir
     """
     options = options or RenderOptions()
     out_dir = Path(out_dir)
+    _check_patterns(items, out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     cache_dir = Path(cache_dir or out_dir / ".voxrender-cache")
     cache_dir.mkdir(parents=True, exist_ok=True)
     jobs = jobs or os.cpu_count() or 1
-    _check_patterns(items, out_dir)
     rows = {}
     todo = {}
     for item in items:

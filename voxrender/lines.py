@@ -21,7 +21,6 @@ permuted so ``A >= B >= C >= 0``; :class:`Frame` maps back.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -88,12 +87,14 @@ class Frame:
 
     @classmethod
     def of(cls, start, end):
+        """The frame of one line (arrays of 3) or of many (arrays ``(n, 3)``)."""
         start, end = np.asarray(start, float), np.asarray(end, float)
         origin = np.floor(start + 0.5).astype(np.int64)
         delta = end - start
         sign = np.where(delta < 0, -1, 1)
-        order = np.argsort(-np.abs(delta), kind="stable")
-        return cls(origin, sign, order, (sign * (start - origin))[order], np.abs(delta)[order])
+        order = np.argsort(-np.abs(delta), axis=-1, kind="stable")
+        return cls(origin, sign, order, np.take_along_axis(sign * (start - origin), order, axis=-1),
+                   np.take_along_axis(np.abs(delta), order, axis=-1))
 
     def to_object(self, q):
         """Frame voxel offsets ``q`` (..., 3) to object voxels."""
@@ -328,14 +329,9 @@ class Stepper:
     """
 
     def __init__(self, starts, ends):
-        starts, ends = np.asarray(starts, float), np.asarray(ends, float)
-        self.origin = np.floor(starts + 0.5).astype(np.int64)
-        delta = ends - starts
-        self.sign = np.where(delta < 0, -1, 1)
-        self.order = np.argsort(-np.abs(delta), axis=1, kind="stable")
-        rows = np.arange(len(starts))[:, None]
-        self.offset = (self.sign * (starts - self.origin))[rows, self.order]
-        self.extent = np.abs(delta)[rows, self.order]
+        frame = Frame.of(starts, ends)
+        self.origin, self.sign, self.order, self.offset, self.extent = (
+            frame.origin, frame.sign, frame.order, frame.offset, frame.extent)
         self.q = np.zeros_like(self.origin)
         self.six = np.zeros(len(starts), bool)
         a, b, c = self.extent.T
