@@ -120,6 +120,39 @@ def test_one_dicom_file_points_to_its_folder(tmp_path):
         io.read_volume(paths[0])
 
 
+def test_dicom_in_nested_folders(tmp_path):
+    stored = np.random.default_rng(6).integers(0, 2000, size=(4, 5, 6))
+    write_series(tmp_path / "export" / "patient" / "study", stored)
+    (tmp_path / "export" / "README.txt").write_text("exported")
+    volume = io.read_volume(tmp_path / "export")
+    assert np.array_equal(volume.values, stored - 1024)
+
+
+@pytest.mark.parametrize("syntax", ["RLELossless", "JPEG2000Lossless"])
+def test_compressed_dicom(tmp_path, syntax):
+    import pydicom
+    from pydicom import uid
+
+    stored = np.random.default_rng(7).integers(0, 2000, size=(3, 64, 64))
+    for path in write_series(tmp_path, stored):
+        ds = pydicom.dcmread(path)
+        ds.compress(getattr(uid, syntax), ds.pixel_array.astype(np.int16))
+        ds.save_as(path)
+    assert np.array_equal(io.read_volume(tmp_path).values, stored - 1024)
+
+
+def test_dicom_positions_without_orientation(tmp_path):
+    import pydicom
+
+    stored = np.random.default_rng(8).integers(0, 2000, size=(4, 3, 3))
+    for path in write_series(tmp_path, stored):
+        ds = pydicom.dcmread(path)
+        del ds.ImageOrientationPatient
+        ds.save_as(path)
+    volume = io.read_volume(tmp_path)
+    assert volume.meta["sorted_by"] == "ImagePositionPatient" and np.array_equal(volume.values, stored - 1024)
+
+
 def test_vhf_head_dicom():
     volume = io.read_volume(data_path("vhf_head"))
     assert volume.shape == (234, 512, 512) and volume.spacing == (1.0, 1.0, 1.0)

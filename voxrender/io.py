@@ -108,6 +108,16 @@ def _files_in(folder):
     return files
 
 
+def _dicom_files(folder):
+    """DICOM files in ``folder``; when it holds none itself, those anywhere below it (exports nest them)."""
+    files = [p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".") and _is_dicom(p)]
+    if not files:
+        files = [p for p in folder.rglob("*") if p.is_file() and not any(part.startswith(".") for part in
+                                                                            p.relative_to(folder).parts)
+                 and _is_dicom(p)]
+    return sorted((p for p in files if p.name.upper() != "DICOMDIR"), key=lambda p: natural_key(str(p)))
+
+
 def _is_dicom(path):
     if path.suffix.lower() in DICOM_EXTENSIONS:
         return True
@@ -135,9 +145,11 @@ def detect_format(path, raw=None):
             raise InputError(f"{path} is one DICOM file; give the folder that holds the whole series")
         raise InputError(f"cannot tell the format of {path}; give a folder of slices, .mhd/.mha, .npy, "
                          "a multi-page .tif, or headerless slices with --raw WxH:dtype:endian")
-    files = _files_in(path)
-    if any(_is_dicom(f) for f in files):
+    if not any(p.is_file() for p in path.iterdir()) and not any(p.is_dir() for p in path.iterdir()):
+        raise InputError(f"{path} is an empty folder; give a folder of slices")
+    if _dicom_files(path):
         return "dicom"
+    files = _files_in(path)
     if any(f.suffix.lower() in IMAGE_EXTENSIONS for f in files):
         return "images"
     metaimages = [f for f in files if f.suffix.lower() in (".mhd", ".mha")]
@@ -277,7 +289,9 @@ def _read_dicom(folder, progress, series=None):
     import pydicom
     from pydicom.errors import InvalidDicomError
 
-    files = [f for f in _files_in(folder) if _is_dicom(f) and f.name.upper() != "DICOMDIR"]
+    files = _dicom_files(folder)
+    if not files:
+        raise InputError(f"{folder} holds no DICOM files")
     headers = []
     for f in progress(files, len(files), "reading DICOM headers"):
         try:
@@ -317,7 +331,9 @@ def _read_dicom(folder, progress, series=None):
             ds = pydicom.dcmread(f)
             data = ds.pixel_array
         except Exception as exc:  # pydicom raises many types for truncated or compressed data
-            raise InputError(f"cannot read the pixels of DICOM file {f}: {_short(exc)}") from None
+            syntax = getattr(getattr(ds, "file_meta", None), "TransferSyntaxUID", None) if "ds" in locals() else None
+            hint = f" (transfer syntax {syntax.name})" if syntax is not None and syntax.is_compressed else ""
+            raise InputError(f"cannot read the pixels of DICOM file {f}{hint}: {_short(exc)}") from None
         slope = float(getattr(ds, "RescaleSlope", 1) or 1)
         intercept = float(getattr(ds, "RescaleIntercept", 0) or 0)
         if slope.is_integer() and intercept.is_integer():
@@ -345,7 +361,9 @@ def _list_series(groups):
 def _sort_dicom(items):
     """Order slices along the slice normal; return (items, slice spacing, how they were sorted)."""
     try:
-        orientation = np.array([float(v) for v in items[0][1].ImageOrientationPatient])
+        first = items[0][1]
+        orientation = (np.array([float(v) for v in first.ImageOrientationPatient])
+                       if "ImageOrientationPatient" in first else np.array([1.0, 0, 0, 0, 1, 0]))  # axial
         normal = np.cross(orientation[:3], orientation[3:])
         positions = np.array([np.dot([float(v) for v in ds.ImagePositionPatient], normal) for _, ds in items])
         how = "ImagePositionPatient"
