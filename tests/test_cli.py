@@ -85,6 +85,16 @@ def test_encode_then_render_the_vxs(tmp_path, cube_folder):
     assert_bad_input(run("render", vxs, "--threshold", 3, "-o", tmp_path / "c.png"), "already encoded")
 
 
+def test_encode_octree(tmp_path, cube_folder):
+    from voxrender import octree
+
+    result = run("encode", cube_folder, "--threshold", 500, "--octree", "-o", tmp_path / "c.vxo")
+    assert result.exit_code == 0, result.output
+    tree = octree.load(tmp_path / "c.vxo")
+    assert tree.to_mask().sum() == 216 and "black" in result.output
+    assert_bad_input(run("encode", cube_folder, "--octree", "-o", tmp_path / "c.vxs"), ".vxo")
+
+
 def test_info_reports_threshold_and_counts(cube_folder):
     result = run("info", cube_folder, "--threshold", 500, "--json")
     assert result.exit_code == 0, result.output

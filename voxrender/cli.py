@@ -16,7 +16,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from . import __version__, batch, io, lines, prep, samples, segments, shade
+from . import __version__, batch, io, lines, octree, prep, samples, segments, shade
 from .errors import InputError
 from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
 from .render import DEFAULT_METHOD, METHODS, Clip, render
@@ -243,18 +243,30 @@ def render_command(input_path, output, method, connectivity, clip_x, clip_y, cli
 @main.command("encode")
 @_input_options
 @_prep_options_decorator
-@click.option("-o", "--output", required=True, type=click.Path(path_type=Path), help=".vxs file to write.")
-def encode_command(input_path, output, **options):
-    """Threshold INPUT and save its run-length segments as a .vxs file."""
-    if is_segments_file(input_path):
+@click.option("-o", "--output", required=True, type=click.Path(path_type=Path),
+              help=".vxs file to write (.vxo with --octree).")
+@click.option("--octree", "as_octree", is_flag=True, help="Write the region and linear octrees (.vxo) instead.")
+def encode_command(input_path, output, as_octree, **options):
+    """Threshold INPUT and save its run-length segments (.vxs) or its octrees (.vxo)."""
+    suffix = ".vxo" if as_octree else ".vxs"
+    if output.suffix.lower() != suffix:
+        raise InputError(f"the output {output} must end in {suffix}")
+    if is_segments_file(input_path) and not as_octree:
         raise InputError(f"{input_path} is already encoded")
-    if output.suffix.lower() != ".vxs":
-        raise InputError(f"the output {output} must end in .vxs")
+    _check_vxs_options(input_path, options)
     io.check_writable(output)
     loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
-    segments.save(loaded.segments, output)
     s = loaded.segments
     nz, ny, nx = s.shape
+    if as_octree:
+        tree = octree.build(s.to_mask())
+        octree.save(tree, output)
+        counts = tree.counts()
+        click.echo(f"{output}: {nx}x{ny}x{nz} voxels in a {1 << tree.n}^3 octree: {counts['black']} black, "
+                   f"{counts['white']} white, {counts['grey']} grey nodes; "
+                   f"{len(octree.linear_octree(tree))} linear-octree codes")
+        return
+    segments.save(s, output)
     click.echo(f"{output}: {nx}x{ny}x{nz} voxels, {s.voxel_count} in the object, {s.segment_count} segments, "
                f"threshold {s.meta['threshold']:g}")
 

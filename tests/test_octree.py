@@ -1,0 +1,62 @@
+import numpy as np
+import pytest
+
+from voxrender import octree
+from voxrender.errors import InputError
+from voxrender.samples import STAIRCASE_VOXELS
+
+
+def staircase_mask():
+    mask = np.zeros((4, 4, 4), bool)
+    for x, y, z in STAIRCASE_VOXELS:
+        mask[z, y, x] = True
+    return mask
+
+
+def test_the_papers_staircase():
+    tree = octree.build(staircase_mask())
+    assert octree.code_strings(octree.linear_octree(tree)) == ["0X", "10", "24", "40"]
+    # Table 2's Q column: the codes of single voxels, e.g. (2, 2, 2) is 07 and (3, 1, 2) is 24.
+    single = octree.build(np.pad(np.ones((1, 1, 1), bool), ((2, 1), (2, 1), (2, 1))))
+    assert octree.code_strings(octree.linear_octree(single)) == ["07"]
+
+
+def test_labels_follow_table_1():
+    # forward-north-east (high z, high y, high x) is 0; backward-south-west (all low) is 7
+    assert octree.CHILD_OFFSETS[0].tolist() == [1, 1, 1]
+    assert octree.CHILD_OFFSETS[7].tolist() == [0, 0, 0]
+    assert octree.CHILD_OFFSETS[1].tolist() == [0, 1, 1]  # forward-north-west: low x
+
+
+@pytest.mark.parametrize("shape", [(5, 7, 9), (8, 8, 8), (3, 16, 2), (1, 1, 1)])
+def test_round_trips(shape):
+    mask = np.random.default_rng(sum(shape)).random(shape) < 0.6
+    tree = octree.build(mask)
+    assert np.array_equal(tree.to_mask(), mask)
+    codes = octree.linear_octree(tree)
+    assert np.array_equal(octree.codes_to_mask(codes, tree.n)[:shape[0], :shape[1], :shape[2]], mask)
+    assert (np.diff(codes @ (9 ** np.arange(tree.n)[::-1])) > 0).all() if len(codes) > 1 else True  # sorted
+
+
+def test_flat_arrays_are_consistent():
+    tree = octree.build(np.random.default_rng(3).random((8, 8, 8)) < 0.3)
+    grey = np.flatnonzero(tree.color == octree.GREY)
+    for node in grey:
+        children = tree.first_child[node] + np.arange(8)
+        assert (tree.level[children] == tree.level[node] + 1).all()
+        half = tree.size(node) // 2
+        assert np.array_equal(tree.origin[children], tree.origin[node] + octree.CHILD_OFFSETS * half)
+    assert (tree.first_child[tree.color != octree.GREY] == -1).all()
+    counts = tree.counts()
+    assert counts["white"] + counts["black"] + counts["grey"] == len(tree.color)
+    assert sum(v["grey"] for v in counts["by_level"].values()) == counts["grey"]
+
+
+def test_save_and_load(tmp_path):
+    tree = octree.build(staircase_mask())
+    octree.save(tree, tmp_path / "s.vxo")
+    again = octree.load(tmp_path / "s.vxo")
+    assert np.array_equal(again.to_mask(), staircase_mask()) and again.n == 2
+    (tmp_path / "bad.vxo").write_bytes(b"nope")
+    with pytest.raises(InputError):
+        octree.load(tmp_path / "bad.vxo")
