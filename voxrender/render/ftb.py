@@ -210,11 +210,11 @@ def _remove_painted(lo, hi, k, piece_lo, piece_hi):
     return merged_lo[order], np.concatenate([hi[alive], new_hi[keep]])[order]
 
 
-def _merge_batch(lo, hi, line, first, last, stride):
+def _merge_batch(lo, hi, line, key_first, key_last, stride):
     """MERGE, for many scanlines at once, of one row's spans per scanline with the unlit segments.
 
     ``lo, hi`` are the unlit segments of all scanlines as sorted keys ``line * stride + x + 1``;
-    ``line, first, last`` are the object spans, sorted by scanline and then in walk order,
+    ``line, key_first, key_last`` are the object spans (as keys), sorted by scanline and then in walk order,
     each scanline's spans being one MERGE call.  Returns the counts of cases 1 to 8 (index 0
     unused), which spans met a full scanline (no MERGE), the painted pieces
     ``(span, key_lo, key_hi)`` and the new unlit segments.
@@ -229,7 +229,6 @@ def _merge_batch(lo, hi, line, first, last, stride):
     """
     n = len(line)
     base = line * stride
-    key_first, key_last = base + first + 1, base + last + 1
     running = np.maximum.accumulate(key_last)
     before = np.maximum(base, np.concatenate([[-1], running[:-1]]))  # key of M (base means none yet)
     paint_lo = np.maximum(key_first, before + 1)
@@ -334,6 +333,7 @@ def render_ftb(segments, view, progress=None, clip=None, items=False):
     step_bounds = np.flatnonzero(np.concatenate([[True], step_key[1:] != step_key[:-1], [True]]))
     span_slab = slab[run]
 
+    key_first, key_last = line * stride + span_first + 1, line * stride + span_last + 1
     span_full = np.zeros(len(line), bool)
     slab_ends = set((np.flatnonzero(np.concatenate([span_slab[1:] != span_slab[:-1], [True]])) + 1).tolist())
     cases = np.zeros(9, np.int64)
@@ -342,7 +342,7 @@ def render_ftb(segments, view, progress=None, clip=None, items=False):
     for s in (progress(steps, len(steps), "ftb") if progress else steps):
         a, b = step_bounds[s], step_bounds[s + 1]
         counts, span_full[a:b], (span, piece_lo, piece_hi), lo, hi = _merge_batch(
-            lo, hi, line[a:b], span_first[a:b], span_last[a:b], stride)
+            lo, hi, line[a:b], key_first[a:b], key_last[a:b], stride)
         cases += counts
         painted_spans.append(span + a)
         painted_lo.append(piece_lo)
