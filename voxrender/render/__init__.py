@@ -19,6 +19,7 @@ from .btf import render_btf
 from .clip import Clip
 from .ftb import render_ftb
 from .preimage import render_preimage
+from .octree_sort import render_octree_sort, render_zbuffer
 from .raycast import render_raycast
 
 __all__ = ["METHODS", "DEFAULT_METHOD", "DepthImage", "Clip", "render", "render_preimage"]
@@ -27,6 +28,8 @@ METHODS = {
     "ftb": render_ftb,
     "btf": render_btf,
     "raycast": render_raycast,
+    "octree-sort": render_octree_sort,
+    "zbuffer": render_zbuffer,
 }
 DEFAULT_METHOD = "ftb"
 # Methods that render only alpha and beta (rows stay parallel to scanlines, Theorem 1);

@@ -21,7 +21,7 @@ import numpy as np
 from ..view import pixel_centres
 from .geometry import footprint, ray_cube_entry
 
-__all__ = ["render_btf", "render_btf_literal", "back_to_front", "expand_runs", "slice_runs"]
+__all__ = ["render_btf", "render_btf_literal", "back_to_front", "expand_runs", "slice_runs", "paint_voxels"]
 
 
 def back_to_front(n, direction):
@@ -56,14 +56,18 @@ def slice_runs(segments, z, matrix, clip=None):
 
 
 def _centres(matrix, shape, z, y, x):
-    """Image-space ``(Xc, Yc, Zc)`` of voxel centres."""
+    """Image-space ``(Xc, Yc, Zc)`` of voxel centres (written out, so one voxel or many give the same bits)."""
     nz, ny, nx = shape
-    p = np.stack([x - (nx - 1) / 2, y - (ny - 1) / 2, np.broadcast_to(z - (nz - 1) / 2, np.shape(x))])
-    return matrix @ p.reshape(3, -1)
+    px, py = np.asarray(x) - (nx - 1) / 2, np.asarray(y) - (ny - 1) / 2
+    pz = np.broadcast_to(np.asarray(z) - (nz - 1) / 2, np.shape(px))
+    return tuple(matrix[k, 0] * px + matrix[k, 1] * py + matrix[k, 2] * pz for k in range(3))
 
 
-def _paint_slice(matrix, view, shape, z, y, x):
-    """Every (pixel, depth) where a ray enters one of the given voxels' cubes."""
+def paint_voxels(matrix, view, shape, z, y, x):
+    """Every (pixel, depth, voxel) where a pixel's ray enters one of the given voxels' cubes.
+
+    ``pixels`` are flat indices into the (H, W) picture, ``voxels`` index the given voxels.
+    """
     height, width = view.size
     scale = view.scale
     xc, yc, zc = _centres(matrix, shape, z, y, x)
@@ -78,7 +82,7 @@ def _paint_slice(matrix, view, shape, z, y, x):
     hit &= (i >= 0) & (i < width) & (j >= 0) & (j < height)
     pixels = (np.broadcast_to(j, hit.shape) * width + np.broadcast_to(i, hit.shape))[hit]
     depths = (entry + zc[:, None, None])[hit]
-    return pixels, depths
+    return pixels, depths, np.nonzero(hit)[0]
 
 
 def render_btf(segments, view, progress=None, clip=None):
@@ -118,7 +122,7 @@ def render_btf(segments, view, progress=None, clip=None):
         y, x = expand_runs(*slice_runs(segments, z, matrix, clip))
         if not len(x):
             continue
-        pixels, depths = _paint_slice(matrix, view, segments.shape, z, y, x)
+        pixels, depths, _ = paint_voxels(matrix, view, segments.shape, z, y, x)
         np.minimum.at(buffer, pixels, depths)
         image[pixels] = buffer[pixels]
         buffer[pixels] = np.inf
@@ -155,7 +159,8 @@ def render_btf_literal(segments, view, clip=None):
             stats["rows"] += 1
             voxels = [x for s, e in zip(starts, ends) for x in range(s, e + 1)]
             for x in (reversed(voxels) if matrix[2, 0] > 0 else voxels):
-                xc, yc, zc = _centres(matrix, segments.shape, z, np.array([y]), np.array([x]))[:, 0]
+                xc, yc, zc = (float(c[0]) for c in _centres(matrix, segments.shape, z, np.array([y]),
+                                                              np.array([x])))
                 stats["voxels_projected"] += 1
                 for j in range(height):
                     if abs(rows[j] - yc) * view.scale > hy + 1e-9:
