@@ -167,7 +167,10 @@ def phantom(kind, n):
     return ball & (gyroid > 0.4)
 
 
-def bench_scaling(repeat, sizes=SCALING_SIZES):
+SCALING_METHODS = ("ftb", "btf")  # the dynamic-screen paper's analysis
+
+
+def bench_scaling(repeat, sizes=SCALING_SIZES, methods=SCALING_METHODS):
     """Time against N (N^3 volume, N x N picture at scale 1, view (30, 10)) and the fitted exponents."""
     result = {}
     for kind in ("sphere", "gyroid"):
@@ -176,14 +179,14 @@ def bench_scaling(repeat, sizes=SCALING_SIZES):
             encoded = segments.encode(phantom(kind, n))
             view = View(30.0, 10.0, 0.0, (n, n), 1.0)
             row = {"n": n, "voxels": encoded.voxel_count}
-            for method in timed_methods():
+            for method in methods:
                 row[method] = median_seconds(lambda: render(encoded, view, method), repeat)[0]
             rows.append(row)
         exponents = {method: float(np.polyfit(np.log(sizes), np.log([r[method] for r in rows]), 1)[0])
-                     for method in timed_methods()}
+                     for method in methods}
         # The slope between the two largest sizes, where fixed per-slice costs matter least.
         last = {method: float(np.log(rows[-1][method] / rows[-2][method]) / np.log(sizes[-1] / sizes[-2]))
-                for method in timed_methods()}
+                for method in methods}
         result[kind] = {"rows": rows, "exponents": exponents, "exponents_largest": last}
     return result
 
@@ -300,9 +303,10 @@ def markdown(results):
               f"{pipeline['seconds']:.2f} s (`{pipeline['command']}`)", "",
               "Time against N (N^3 volume, N x N picture, view (30, 10)), median seconds:", ""]
     for kind, data in results["scaling"].items():
-        lines += [f"| {kind} N | voxels | " + " | ".join(methods) + " |", "|---|---|" + "---|" * len(methods)]
+        scaled = list(data["exponents"])
+        lines += [f"| {kind} N | voxels | " + " | ".join(scaled) + " |", "|---|---|" + "---|" * len(scaled)]
         for row in data["rows"]:
-            lines.append(f"| {row['n']} | {row['voxels']:,} | " + " | ".join(f"{row[m]:.4f}" for m in methods) + " |")
+            lines.append(f"| {row['n']} | {row['voxels']:,} | " + " | ".join(f"{row[m]:.4f}" for m in scaled) + " |")
         lines += ["", f"fitted exponent of N ({kind}): " +
                   ", ".join(f"{m} {e:.2f}" for m, e in data["exponents"].items()) +
                   "; between the two largest N: " +

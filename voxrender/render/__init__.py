@@ -19,6 +19,7 @@ from .btf import render_btf
 from .clip import Clip
 from .ftb import render_ftb
 from .preimage import render_preimage
+from .octree_btf import render_octree_btf
 from .octree_sort import render_octree_sort, render_zbuffer
 from .raycast import render_raycast
 
@@ -28,6 +29,7 @@ METHODS = {
     "ftb": render_ftb,
     "btf": render_btf,
     "raycast": render_raycast,
+    "octree-btf": render_octree_btf,
     "octree-sort": render_octree_sort,
     "zbuffer": render_zbuffer,
 }
