@@ -323,6 +323,9 @@ def _read_dicom(folder, progress, series=None):
                              f"{first.Columns}x{first.Rows}; all slices must have the same size")
     if int(getattr(first, "NumberOfFrames", 1) or 1) > 1:
         raise InputError(f"{chosen[0][0]} is a multi-frame DICOM; voxrender reads one slice per file")
+    if "PixelSpacing" not in first:
+        warnings.warn("the DICOM series has no PixelSpacing; using 1 mm (give --spacing if that is wrong)",
+                      stacklevel=2)
     pixel = [float(v) for v in getattr(first, "PixelSpacing", [1.0, 1.0])]
 
     def read(item):
