@@ -78,7 +78,8 @@ def bench_views(encoded, repeat, size=512, scale=1.0, peer=None, views=PAPER_VIE
         view = View(alpha, beta, 0.0, (size, size), scale)
         row = {"alpha": alpha, "beta": beta, "seconds": {}, "stats": {}}
         for method in timed_methods():
-            seconds, image = median_seconds(lambda: render(encoded, view, method), repeat)
+            options = {"count_writes": False} if method == "zbuffer" else {}  # time its work, not our counting
+            seconds, image = median_seconds(lambda: render(encoded, view, method, **options), repeat)
             row["seconds"][method] = seconds
             row["stats"][method] = image.stats
         if peer is not None:
@@ -258,6 +259,25 @@ def bench_batch(path, views=36, size=512, separate=True):
     return result
 
 
+def bench_sorted_octree(repeat, sides=(16, 29, 32, 42)):
+    """The linear-octree paper's Table 4: sorted linear octree against the back-face-culled z-buffer,
+    solid cubes of ``side``^3 voxels (4 k to 74 k voxels, the paper's range), at its three VPNs."""
+    from .view import angles_from_vpn
+
+    rows = []
+    for side in sides:
+        encoded = segments.encode(np.pad(np.ones((side, side, side), bool), 2))
+        encoded.octree()  # built once, as the paper starts from the linear octree
+        row = {"voxels": side ** 3}
+        for vpn in ((1, 0, 0), (1, 1, 0), (1, 1, 1)):
+            view = View(*angles_from_vpn(vpn), (256, 256), None)
+            for method, options in (("zbuffer", {"count_writes": False}), ("octree-sort", {})):
+                row[f"{method} {vpn}"] = median_seconds(lambda: render(encoded, view, method, **options),
+                                                        repeat)[0]
+        rows.append(row)
+    return rows
+
+
 def markdown(results):
     methods = timed_methods()
     peers = ["vtk"] if results.get("vtk_version") else []
@@ -287,6 +307,14 @@ def markdown(results):
                 lines.append(f"| {name} | {connectivity} | {row['seconds']:.2f} | {row['steps_26']:,} | "
                              f"{row['steps_6']:,} | {row['steps_26'] + row['steps_6']:,} | {row['late_hits']:,} | "
                              f"{row['leaks']:,} | {row['misses']:,} |")
+    if results.get("sorted_octree"):
+        lines += ["", "Sorted linear octree against the z-buffer (the linear-octree paper's Table 4; solid cubes, "
+                  "256 x 256, median seconds):", "",
+                  "| voxels | VPN | zbuffer | octree-sort | zbuffer/octree-sort |", "|---|---|---|---|---|"]
+        for row in results["sorted_octree"]:
+            for vpn in ("(1, 0, 0)", "(1, 1, 0)", "(1, 1, 1)"):
+                z, o = row[f"zbuffer {vpn}"], row[f"octree-sort {vpn}"]
+                lines.append(f"| {row['voxels']:,} | {vpn} | {z:.4f} | {o:.4f} | {z / o:.2f} |")
     if results.get("batch"):
         b = results["batch"]
         lines += ["", f"Batch: a {b['views']}-view turntable of vhf_head at {b['size']} x {b['size']} "
@@ -339,6 +367,7 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
                                                                                    "method": DEFAULT_METHOD},
             "scaling": bench_scaling(repeat, scaling_sizes),
             "batch": bench_batch(path),
+            "sorted_octree": bench_sorted_octree(repeat),
             "raycast": bench_raycast(min(repeat, 3), {
                 "thin shell 128^3": (segments.encode(thin_shell()), View(30.0, 10.0, 0.0, (256, 256), 1.5)),
                 f"vhf_head {THRESHOLD:g} HU": (encoded, View(30.0, 10.0, 0.0, (256, 256), 0.5))})}
