@@ -1,16 +1,13 @@
 import numpy as np
 import pytest
 
-from voxrender import octree
+from voxrender import octree, samples
 from voxrender.errors import InputError
-from voxrender.samples import STAIRCASE_VOXELS
 
 
 def staircase_mask():
-    mask = np.zeros((4, 4, 4), bool)
-    for x, y, z in STAIRCASE_VOXELS:
-        mask[z, y, x] = True
-    return mask
+    """The linear-octree paper's Fig. 2 staircase as a mask."""
+    return samples.staircase() > samples.SAMPLE_THRESHOLD
 
 
 def test_the_papers_staircase():

@@ -2,14 +2,13 @@ import numpy as np
 import pytest
 
 from reference import agreement, march
-from voxrender import octree, segments
+from voxrender import octree, samples, segments
 from voxrender.render import render
 from voxrender.render.btf import render_btf
 from voxrender.render.clip import Clip
 from voxrender.render.octree_sort import (decode, recode, recode_literal, render_octree_sort,
                                           render_octree_sort_literal, render_zbuffer, render_zbuffer_literal,
                                           visible_faces, voxel_codes)
-from voxrender.samples import STAIRCASE_VOXELS
 from voxrender.view import View, angles_from_vpn
 
 # The linear-octree paper's Table 2: (x, y, z), Q, Q' for VPN (1.0, 1.1, 1.2), Q' for VPN (-2.0, 1.5, 1.0).
@@ -20,10 +19,8 @@ TABLE_2 = [((3, 3, 3), "00", "00", "60"), ((2, 3, 3), "01", "01", "40"), ((3, 2,
 
 
 def staircase():
-    mask = np.zeros((4, 4, 4), bool)
-    for x, y, z in STAIRCASE_VOXELS:
-        mask[z, y, x] = True
-    return mask
+    """The linear-octree paper's Fig. 2 staircase as a mask."""
+    return samples.staircase() > samples.SAMPLE_THRESHOLD
 
 
 def test_table_2_codes_and_recodes():
