@@ -85,6 +85,16 @@ def test_encode_then_render_the_vxs(tmp_path, cube_folder):
     assert_bad_input(run("render", vxs, "--threshold", 3, "-o", tmp_path / "c.png"), "already encoded")
 
 
+def test_fit_object_zooms_in(tmp_path, cube_folder):
+    covered = {}
+    for fit in ("volume", "object"):
+        path = tmp_path / f"{fit}.npy"
+        assert run("render", cube_folder, "--threshold", 500, "--fit", fit, "--alpha", 30, "--size", 64, "-o",
+                   tmp_path / f"{fit}.png", "--depth-out", path).exit_code == 0
+        covered[fit] = np.isfinite(np.load(path)).sum()
+    assert covered["object"] > 1.5 * covered["volume"]
+
+
 def test_encode_octree(tmp_path, cube_folder):
     from voxrender import octree
 

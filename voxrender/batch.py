@@ -116,6 +116,7 @@ class RenderOptions:
     light: tuple = (0.0, 0.0, -1.0)
     background: tuple = (0, 0, 0)
     supersample: int = 2
+    fit: str = "volume"
 
 
 @dataclass
@@ -267,7 +268,7 @@ def render_task(item, view, index, segments_path, out_dir, options, encode_secon
     try:
         encoded = segments.load(segments_path)
         picture = View(view.alpha, view.beta, view.gamma, options.size, options.scale)
-        image = render(encoded, picture, item.method, supersample=options.supersample)
+        image = render(encoded, picture, item.method, supersample=options.supersample, fit=options.fit)
         shaded_at = time.perf_counter()
         rgb = shade.shade(image.depth, options.shading, image.view.scale, options.light,
                           background=options.background)

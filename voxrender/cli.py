@@ -180,6 +180,8 @@ def main():
 @click.option("--vpn", metavar="I,J,K", help="View plane normal (object x,y,z toward the viewer).")
 @click.option("--size", default="512", show_default=True, metavar="N|WxH", help="Image size in pixels.")
 @click.option("--scale", type=float, help="Pixels per voxel (default: fit the volume at any rotation).")
+@click.option("--fit", type=click.Choice(["volume", "object"]), default="volume", show_default=True,
+              help="Without --scale: fit the whole volume, or only the object, at any rotation.")
 @click.option("--connectivity", type=click.Choice(["6", "26", "adaptive"]), default="adaptive", show_default=True,
               help="Discrete rays of --method raycast: 6, 26, or 26 switching to 6 near the object.")
 @click.option("--clip-x", metavar="A:B", help="Keep voxels with A <= x < B (object space, after resampling).")
@@ -199,7 +201,7 @@ def main():
               help="Save depth as a 16-bit PNG (near bright, background 0).")
 @click.option("--stats-json", type=click.Path(path_type=Path), metavar="FILE",
               help="Save timings and the renderer's statistics as JSON.")
-def render_command(input_path, output, method, connectivity, clip_x, clip_y, clip_z, cut_depth, shading, light, background,
+def render_command(input_path, output, method, fit, connectivity, clip_x, clip_y, clip_z, cut_depth, shading, light, background,
                    supersample, depth_out, depth_png, stats_json, **options):
     """Render INPUT (a slice folder, volume file or .vxs) to a shaded PNG."""
     started = time.perf_counter()
@@ -214,7 +216,8 @@ def render_command(input_path, output, method, connectivity, clip_x, clip_y, cli
             io.check_writable(path)
     loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
     options = {"connectivity": connectivity} if method == "raycast" else {}
-    image = render(loaded.segments, view, method, progress, supersample, clip if clip.active else None, **options)
+    image = render(loaded.segments, view, method, progress, supersample, clip if clip.active else None, fit,
+                   **options)
     shaded_at = time.perf_counter()
     rgb = shade.shade(image.depth, shading, image.view.scale, light, background=background)
     written_at = time.perf_counter()
@@ -355,6 +358,8 @@ class _BatchBar:
               help="Output names under --out: {name}, {view}, {method}, {index}.")
 @click.option("--size", default="512", show_default=True, metavar="N|WxH")
 @click.option("--scale", type=float)
+@click.option("--fit", type=click.Choice(["volume", "object"]), default="volume", show_default=True,
+              help="Without --scale: fit the whole volume, or only the object, at any rotation.")
 @click.option("--shading", default="gradient", show_default=True, type=click.Choice(["gradient", "depth"]))
 @click.option("--background", default="black", show_default=True, metavar="GREY|R,G,B")
 @click.option("--gif", is_flag=True, help="Also write each input's views as an animated GIF.")
@@ -363,7 +368,7 @@ class _BatchBar:
 @click.option("--jobs", type=click.IntRange(1, 1024), help="Worker processes (default: the machine's cores).")
 @click.option("--scheduler", metavar="ADDRESS|local", help="Run on a Dask cluster ('local' starts one here).")
 @click.option("--cache", type=click.Path(path_type=Path), help="Cache of encoded objects (default OUT/.voxrender-cache).")
-def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pattern, size, scale, shading,
+def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pattern, size, scale, fit, shading,
                   background, gif, mp4, fps, jobs, scheduler, cache, method, **options):
     """Render many inputs from many views: pictures, an optional animation, and summary.csv.
 
@@ -379,7 +384,8 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
     rows = batch.read_manifest(manifest) if manifest else []
     items = batch.items_from(batch.expand_inputs(inputs), rows, read, prepare, method,
                              batch.parse_views(views, angles, turntable, axis), pattern)
-    render_options = batch.RenderOptions(_parse_size(size), scale, shading, background=shade.parse_colour(background))
+    render_options = batch.RenderOptions(_parse_size(size), scale, shading, background=shade.parse_colour(background),
+                                         fit=fit)
     animations = [kind for kind, wanted in (("gif", gif), ("mp4", mp4)) if wanted]
     started = time.perf_counter()
     summary = batch.run_batch(items, out_dir, render_options, jobs, scheduler, cache, animations, fps, _BatchBar)

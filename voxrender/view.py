@@ -114,13 +114,22 @@ def angles_from_vpn(vpn):
     return (_wrap(math.degrees(alpha)) + 0.0, math.degrees(beta) + 0.0, 0.0)
 
 
-def fit_scale(shape, size):
+def fit_scale(shape, size, box=None):
     """Pixels per voxel that fit a ``shape = (nz, ny, nx)`` volume in ``size = (H, W)`` at any rotation.
+
+    With ``box = ((z0, z1), (y0, y1), (x0, x1))`` (inclusive voxel indices, e.g. the object's bounding
+    box) the scale fits that box instead, still turning about the volume centre (the contract's ``c``).
 
     >>> round(fit_scale((10, 10, 10), (100, 200)), 4)
     5.7735
+    >>> round(fit_scale((10, 10, 10), (100, 100), ((0, 9), (0, 9), (0, 9))), 4)
+    5.7735
     """
-    return min(size) / math.sqrt(sum(n * n for n in shape))
+    if box is None:
+        return min(size) / math.sqrt(sum(n * n for n in shape))
+    centre = [(n - 1) / 2 for n in shape]
+    reach = [max(abs(lo - 0.5 - c), abs(hi + 0.5 - c)) for (lo, hi), c in zip(box, centre)]
+    return min(size) / (2 * math.sqrt(sum(r * r for r in reach)))
 
 
 @dataclass(frozen=True)
@@ -158,9 +167,9 @@ class View:
     def matrix(self):
         return rotation_matrix(self.alpha, self.beta, self.gamma)
 
-    def fitted(self, shape):
-        """This view with ``scale`` set (fitted to ``shape`` when it is ``None``)."""
-        return self if self.scale is not None else replace(self, scale=fit_scale(shape, self.size))
+    def fitted(self, shape, box=None):
+        """This view with ``scale`` set (when it is ``None``: fitted to the volume, or to ``box``)."""
+        return self if self.scale is not None else replace(self, scale=fit_scale(shape, self.size, box))
 
     @classmethod
     def preset(cls, name, **kwargs):

@@ -54,11 +54,14 @@ class DepthImage:
         return np.isfinite(self.depth)
 
 
-def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, clip=None, **options):
+def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, clip=None, fit="volume",
+           **options):
     """Render ``segments`` with ``method`` from ``view`` (scale fitted when unset).
 
     ``supersample`` is the pre-image's scale factor for methods that apply gamma by
     rotating a pre-image; ``clip`` is a :class:`Clip` (clip limits, cut plane) or ``None``;
+    ``fit`` chooses what an unset scale fits at any rotation: the ``"volume"`` (the contract's
+    default) or the ``"object"`` (its bounding box; it still turns about the volume centre);
     further ``options`` go to the method (``connectivity`` for ``raycast``).
 
     >>> from voxrender.segments import encode
@@ -70,7 +73,9 @@ def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, 
         raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     if not segments.segment_count:
         raise InputError("the object is empty: no voxel reaches the threshold")
-    view = view.fitted(segments.shape)
+    if fit not in ("volume", "object"):
+        raise InputError(f"--fit {fit!r}: choose volume or object")
+    view = view.fitted(segments.shape, segments.bounding_box() if fit == "object" else None)
     started = time.perf_counter()
     if method in PREIMAGE_METHODS and view.gamma % 360:
         depth, stats = render_preimage(METHODS[method], segments, view, supersample, progress, clip)
