@@ -330,11 +330,12 @@ def _read_dicom(folder, progress, series=None):
 
     def read(item):
         f, _ = item
+        ds = None
         try:
             ds = pydicom.dcmread(f)
             data = ds.pixel_array
         except Exception as exc:  # pydicom raises many types for truncated or compressed data
-            syntax = getattr(getattr(ds, "file_meta", None), "TransferSyntaxUID", None) if "ds" in locals() else None
+            syntax = getattr(getattr(ds, "file_meta", None), "TransferSyntaxUID", None)
             hint = f" (transfer syntax {syntax.name})" if syntax is not None and syntax.is_compressed else ""
             raise InputError(f"cannot read the pixels of DICOM file {f}{hint}: {_short(exc)}") from None
         slope = float(getattr(ds, "RescaleSlope", 1) or 1)

@@ -332,6 +332,7 @@ class Stepper:
         frame = Frame.of(starts, ends)
         self.origin, self.sign, self.order, self.offset, self.extent = (
             frame.origin, frame.sign, frame.order, frame.offset, frame.extent)
+        self.unorder = np.argsort(self.order, axis=1)  # frame axis -> object axis, for voxels
         self.q = np.zeros_like(self.origin)
         self.six = np.zeros(len(starts), bool)
         a, b, c = self.extent.T
@@ -346,16 +347,15 @@ class Stepper:
     def subset(self, keep):
         """The lines selected by ``keep`` (bool or index array), as a new stepper in the same state."""
         other = object.__new__(Stepper)
-        for name in ("origin", "sign", "order", "offset", "extent", "q", "six", "e_y", "e_z", "e_xy", "e_xz",
-                     "e_zy"):
+        for name in ("origin", "sign", "order", "unorder", "offset", "extent", "q", "six", "e_y", "e_z", "e_xy",
+                     "e_xz", "e_zy"):
             setattr(other, name, getattr(self, name)[keep])
         return other
 
     @property
     def voxels(self):
         """Current voxel of every line, in object coordinates."""
-        unorder = np.argsort(self.order, axis=1)
-        return self.origin + self.sign * np.take_along_axis(self.q, unorder, axis=1)
+        return self.origin + self.sign * np.take_along_axis(self.q, self.unorder, axis=1)
 
     def switch(self, six):
         """Set each line's connectivity: Eqs. 9-11 into 6 mode, Eqs. 12-13 back to 26 mode."""

@@ -73,11 +73,12 @@ class BlockingBitmap:
         self.bits[index >> 2] = (self.bits[index >> 2] & ~(3 << shift) & 0xFF) | (color << shift)
 
 
-def render_octree_ftb_literal(segments, view, clip=None):
+def render_octree_ftb_literal(segments, view, clip=None, arrivals=None):
     """Front-to-back octree display with blocking bitmaps (Zhao and Davis, Sec. 4), recursively.
 
     Returns the depth image and Table II/III statistics: octants visited and blocked by
     colour, black faces scan-converted, scanlines and pixels accumulated, pixels painted.
+    ``arrivals``, a dict, receives for every visited node the bitmap value per axis it found.
     """
     tree = _tree(segments, view, clip)
     vpn = vpn_from_angles(view.alpha, view.beta, view.gamma)
@@ -101,11 +102,16 @@ def render_octree_ftb_literal(segments, view, clip=None):
                 image[pixel] = depth
                 stats["pixels_painted"] += 1
 
+    def record(node, index):
+        if arrivals is not None:
+            arrivals[node] = {axis: bitmaps[axis].get(index[axis]) for axis, _ in axes}
+
     def process_white_or_black(node, depth, card):
         color = int(tree.color[node])
         name = "black" if color == octree.BLACK else "white"
         stats[f"{name}_visited"] += 1
         index = {axis: ind_tab(depth) + card[axis] for axis, _ in axes}
+        record(node, index)
         if all(bitmaps[axis].get(index[axis]) == B for axis, _ in axes):
             stats[f"{name}_blocked"] += 1
             return
@@ -119,6 +125,7 @@ def render_octree_ftb_literal(segments, view, clip=None):
     def process_grey(node, depth, card):
         stats["grey_visited"] += 1
         index = {axis: ind_tab(depth) + card[axis] for axis, _ in axes}
+        record(node, index)
         if all(bitmaps[axis].get(index[axis]) == B for axis, _ in axes):
             stats["grey_blocked"] += 1            # discarded with all its descendants
             return
