@@ -57,3 +57,45 @@ def test_save_and_load(tmp_path):
     (tmp_path / "bad.vxo").write_bytes(b"nope")
     with pytest.raises(InputError):
         octree.load(tmp_path / "bad.vxo")
+
+
+def _leaf_labels(tree):
+    side = 1 << tree.n
+    labels = np.full((side, side, side), -1, np.int64)   # [x, y, z]
+    for node in np.flatnonzero(tree.first_child < 0):
+        x, y, z = tree.origin[node]
+        s = 1 << (tree.n - int(tree.level[node]))
+        labels[x:x + s, y:y + s, z:z + s] = node
+    return labels
+
+
+def test_leaf_pairs_are_the_face_adjacent_leaves():
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        mask = rng.random(tuple(rng.integers(2, 12, 3))) < rng.uniform(0.1, 0.9)
+        mask[:3, :3, :3] = rng.random() < 0.5
+        tree = octree.build(mask)
+        labels = _leaf_labels(tree)
+        for axis, (low, high) in enumerate(tree.leaf_pairs):
+            a = np.moveaxis(labels, axis, 0)
+            expected = {(int(p), int(q)) for p, q in zip(a[:-1].ravel(), a[1:].ravel()) if p != q}
+            assert set(zip(low.tolist(), high.tolist())) == expected
+
+
+def test_parents_and_white_neighbours():
+    rng = np.random.default_rng(8)
+    tree = octree.build(rng.random((9, 7, 8)) < 0.4)
+    children = tree.first_child[tree.first_child >= 0][:, None] + np.arange(8)
+    assert np.all(tree.parent[children] == np.flatnonzero(tree.first_child >= 0)[:, None])
+    assert tree.parent[0] == -1
+    white = tree.white_leaves
+    assert np.all((tree.color[white] == octree.WHITE) & (tree.first_child[white] < 0))
+    for direction, matrix in enumerate(tree.white_neighbours):
+        axis, high = divmod(direction, 2)
+        low_leaves, high_leaves = tree.leaf_pairs[axis]
+        source, target = (low_leaves, high_leaves) if high else (high_leaves, low_leaves)
+        keep = tree.color[source] == octree.WHITE
+        rows, cols = matrix.nonzero()
+        assert set(zip(white[rows].tolist(), cols.tolist())) == set(zip(source[keep].tolist(), target[keep].tolist()))
+        steps = tree.white_to_white[direction].nonzero()
+        assert np.all(tree.color[white[steps[1]]] == octree.WHITE)

@@ -107,3 +107,13 @@ def test_view_rejects_bad_values():
         View(alpha=float("nan"))
     with pytest.raises(InputError):
         View.preset("sideways")
+
+
+def test_axis_aligned_views_have_exact_matrices():
+    # cos 90 computed in floating point is 6e-17; the octree methods read the viewing class (which VPN
+    # components are zero) from the matrix, and rays along voxel faces must stay on them.
+    from voxrender.view import rotation_matrix
+    for alpha in (-180, -90, 0, 90, 270):
+        for beta in (0, 90, 180):
+            matrix = rotation_matrix(alpha, beta, 90)
+            assert set(np.unique(matrix).tolist()) <= {-1.0, 0.0, 1.0}

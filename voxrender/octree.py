@@ -18,15 +18,17 @@ below a full octant, sorted.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
+from scipy.sparse import csr_matrix
 
 from .errors import InputError
 from .io import atomic_output
 
 __all__ = ["WHITE", "BLACK", "GREY", "RegionOctree", "build", "linear_octree", "code_strings", "codes_to_mask",
-           "save", "load", "CHILD_OFFSETS"]
+           "save", "load", "CHILD_OFFSETS", "morton"]
 
 WHITE, BLACK, GREY = 0, 1, 2
 X_MARKER = 8  # the digit X, which sorts after 0..7
@@ -75,6 +77,91 @@ class RegionOctree:
                               for k in range(self.n + 1)}
         return result
 
+    @cached_property
+    def parent(self):
+        """Index of each node's parent (-1 for the root)."""
+        parent = np.full(len(self.color), -1, np.int64)
+        grey = np.flatnonzero(self.first_child >= 0)
+        parent[self.first_child[grey][:, None] + np.arange(8)] = grey[:, None]
+        return parent
+
+    @cached_property
+    def level_starts(self):
+        """``level_starts[k]:level_starts[k + 1]`` are the nodes of level ``k`` (stored level by level)."""
+        return np.searchsorted(self.level, np.arange(self.n + 2))
+
+    @cached_property
+    def leaf_pairs(self):
+        """Face-adjacent leaves: for each axis (x, y, z), ``(low, high)`` arrays of leaf pairs that share part
+        of a face perpendicular to the axis, ``low`` on its low side.
+
+        Of two adjacent leaves, one face holds the other's, so looking up the leaf just across each leaf's
+        low and high face (at its low corner) finds every pair.
+
+        >>> tree = build(np.array([[[1, 0], [0, 0]], [[0, 0], [0, 1]]], bool))
+        >>> low, high = tree.leaf_pairs[0]
+        >>> sorted(zip(tree.origin[low, 0].tolist(), tree.origin[high, 0].tolist()))
+        [(0, 1), (0, 1), (0, 1), (0, 1)]
+        """
+        leaves = np.flatnonzero(self.first_child < 0)
+        codes = morton(self.origin[leaves])
+        order = np.argsort(codes)
+        leaves, codes = leaves[order], codes[order]
+        origin, size = self.origin[leaves], self.size(leaves)
+        side, count = 1 << self.n, len(self.color)
+        pairs = []
+        for axis in range(3):
+            keys = []
+            for step, from_low in ((size, True), (-1, False)):   # across the high face, then the low face
+                across = origin.copy()
+                across[:, axis] += step
+                inside = (across[:, axis] >= 0) & (across[:, axis] < side)
+                found = leaves[np.searchsorted(codes, morton(across[inside]), side="right") - 1]
+                low, high = (leaves[inside], found) if from_low else (found, leaves[inside])
+                keys.append(low * count + high)
+            keys = np.sort(np.concatenate(keys))
+            keys = keys[np.diff(keys, prepend=-1) != 0]
+            pairs.append((keys // count, keys % count))
+        return pairs
+
+    @cached_property
+    def white_leaves(self):
+        """The white leaves, in node order: row ``k`` of :attr:`white_neighbours` is node ``white_leaves[k]``."""
+        return np.flatnonzero((self.color == WHITE) & (self.first_child < 0))
+
+    @cached_property
+    def white_neighbours(self):
+        """The leaves face-adjacent to each white leaf, one sparse matrix per direction ``2 * axis + high``
+        (``high`` 1 for the neighbours on the high side): entry ``[k, j]`` is 1 when white leaf
+        ``white_leaves[k]`` has node ``j`` across that face.
+
+        >>> tree = build(np.array([[[1, 0], [0, 0]], [[0, 0], [0, 0]]], bool))   # voxel (0, 0, 0) black
+        >>> corner = np.searchsorted(tree.white_leaves, 1 + 0)   # label 0: the white voxel at (1, 1, 1)
+        >>> [m[corner].nnz for m in tree.white_neighbours]       # one neighbour on each low side
+        [1, 0, 1, 0, 1, 0]
+        """
+        return self._white_rows(white_targets=False)
+
+    @cached_property
+    def white_to_white(self):
+        """The steps through empty space: :attr:`white_neighbours` between white leaves only, both numbered as
+        in :attr:`white_leaves`; one spare last row and column for graph searches to start from."""
+        return self._white_rows(white_targets=True)
+
+    def _white_rows(self, white_targets):
+        white = self.color == WHITE
+        rows = len(self.white_leaves) + 1
+        tables = []
+        for low, high in self.leaf_pairs:
+            for source, target in ((high, low), (low, high)):      # the low side first: direction 2 * axis
+                keep = white[source] & (white[target] if white_targets else True)
+                source, target = np.searchsorted(self.white_leaves, source[keep]), target[keep]
+                if white_targets:
+                    target = np.searchsorted(self.white_leaves, target)
+                shape = (rows, rows if white_targets else len(self.color))
+                tables.append(csr_matrix((np.ones(len(source)), (source, target)), shape=shape))
+        return tables
+
     def to_mask(self):
         """The (unpadded) mask ``[z, y, x]`` again."""
         side = 1 << self.n
@@ -85,6 +172,26 @@ class RegionOctree:
             mask[z:z + s, y:y + s, x:x + s] = True
         nz, ny, nx = self.shape
         return mask[:nz, :ny, :nx]
+
+
+def morton(points):
+    """Morton (Z-order) codes of integer ``(x, y, z)`` points: their bits interleaved, x lowest.
+
+    Aligned cubes of the octree are contiguous ranges of codes, so a sorted list of leaf codes
+    locates the leaf holding any voxel with one binary search.
+
+    >>> morton(np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [3, 3, 3]])).tolist()
+    [1, 2, 4, 63]
+    """
+    points = np.asarray(points, np.int64)
+    codes = np.zeros(len(points), np.int64)
+    for axis in range(3):
+        spread = points[:, axis] & 0x1FFFFF                 # 21 bits, spread to every third bit
+        for shift, keep in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF), (8, 0x100F00F00F00F00F),
+                            (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
+            spread = (spread | (spread << shift)) & keep
+        codes |= spread << axis
+    return codes
 
 
 def _pyramid(mask, n):

@@ -40,11 +40,21 @@ def rotation_matrix(alpha, beta, gamma=0.0):
            [ 0,  0, -1],
            [ 0,  1,  0]])
     """
-    a, b, g = np.radians([alpha, beta, gamma])
-    rx = np.array([[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]])
-    ry = np.array([[math.cos(b), 0, math.sin(b)], [0, 1, 0], [-math.sin(b), 0, math.cos(b)]])
-    rz = np.array([[math.cos(g), -math.sin(g), 0], [math.sin(g), math.cos(g), 0], [0, 0, 1]])
+    (ca, sa), (cb, sb), (cg, sg) = (_cos_sin(angle) for angle in (alpha, beta, gamma))
+    rx = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
+    ry = np.array([[cb, 0, sb], [0, 1, 0], [-sb, 0, cb]])
+    rz = np.array([[cg, -sg, 0], [sg, cg, 0], [0, 0, 1]])
     return rz @ ry @ rx
+
+
+def _cos_sin(degrees):
+    """Cosine and sine, exact at multiples of 90 degrees: an axis-aligned view then has exact zeros in its
+    matrix (cos 90 would be 6e-17), so rays along voxel faces stay on them and the octree methods see the
+    viewing class (one, two or three visible faces) the view really has."""
+    if float(degrees) % 90 == 0:
+        return ((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0))[int(float(degrees) // 90) % 4]
+    radians = math.radians(degrees)
+    return math.cos(radians), math.sin(radians)
 
 
 def angles_from_matrix(matrix):

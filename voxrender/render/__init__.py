@@ -20,6 +20,7 @@ from .clip import Clip
 from .ftb import render_ftb
 from .preimage import render_preimage
 from .octree_btf import render_octree_btf
+from .octree_ftb import render_octree_ftb
 from .octree_sort import render_octree_sort, render_zbuffer
 from .raycast import render_raycast
 
@@ -30,6 +31,7 @@ METHODS = {
     "btf": render_btf,
     "raycast": render_raycast,
     "octree-btf": render_octree_btf,
+    "octree-ftb": render_octree_ftb,
     "octree-sort": render_octree_sort,
     "zbuffer": render_zbuffer,
 }

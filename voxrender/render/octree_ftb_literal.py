@@ -1,7 +1,7 @@
 """Zhao and Davis's front-to-back octree display with blocking quadtrees, as the paper writes it.
 
-This is the literal, recursive implementation: the oracle for a vectorised version that
-is still to be written (so ``octree-ftb`` is not in the method registry yet).
+This is the literal, recursive implementation: the oracle for the vectorised version
+(:mod:`.octree_ftb`, ``--method octree-ftb``).
 
 One blocking quadtree per potentially visible axis (the seven viewing classes XYZ, XY,
 XZ, YZ, X, Y, Z are the non-zero components of the VPN), each stored as a *blocking
@@ -14,6 +14,13 @@ number ``4 * card + quad_tab[label][axis]`` (formula 4).
 ``quad_tab`` (the paper's Table I, for our octant labels): the quadrant of the face plane
 perpendicular to ``axis`` that child ``label`` projects to, ``2 * high(b) + high(a)`` with
 ``a < b`` the two other axes.
+
+Ties: a face is scan-converted as the closed square of the view contract (every pixel whose ray
+meets it), so a pixel whose ray runs exactly along an edge shared by two faces is reached by both,
+which the paper's half-open scanline fill never does.  Such faces need not occlude one another, and
+the FTB order may reach the farther first; the nearer depth is then kept (a pixel is still painted
+once, as the paper counts).  Without this, axis-aligned views whose pixel centres fall on voxel
+boundaries lose the contract on up to a fifth of the pixels.
 """
 
 from __future__ import annotations
@@ -98,9 +105,11 @@ def render_octree_ftb_literal(segments, view, clip=None, arrivals=None):
         stats["scanlines_accumulated"] += scanlines
         stats["pixels_accumulated"] += len(pixels)
         for pixel, depth in zip(pixels, depths):
-            if not np.isfinite(image[pixel]):          # fill un-painted pixels only
+            if not np.isfinite(image[pixel]):          # fill un-painted pixels
                 image[pixel] = depth
                 stats["pixels_painted"] += 1
+            elif depth < image[pixel]:                 # a ray along an edge that two faces share: see the module
+                image[pixel] = depth
 
     def record(node, index):
         if arrivals is not None:
