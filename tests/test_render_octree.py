@@ -2,17 +2,13 @@ import numpy as np
 import pytest
 
 from reference import agreement, march
-from voxrender import octree, segments
+from voxrender import segments
 from voxrender.render import render
 from voxrender.render.btf import render_btf
 from voxrender.render.clip import Clip
-from voxrender.render.octree_btf import (front_to_back_children, render_octree_btf, render_octree_btf_literal,
-                                        visible_axes)
-from voxrender.render.octree_ftb_literal import B as BLOCKED
-from voxrender.render.octree_ftb_literal import G as MIXED
-from voxrender.render.octree_ftb_literal import W as WHITE
+from voxrender.render.octree_btf import front_to_back_children, render_octree_btf, render_octree_btf_literal
 from voxrender.render.octree_ftb_literal import QUAD_TAB, BlockingBitmap, render_octree_ftb_literal
-from voxrender.view import View, angles_from_vpn, vpn_from_angles
+from voxrender.view import View, angles_from_vpn
 
 PAPER_VPNS = [(1, -2, 1), (-1, -2, 1), (1, -1, 0), (0, -1, 0)]  # Zhao and Davis's Tables II and III
 
@@ -93,68 +89,3 @@ def test_octree_btf_against_the_marcher(ball):
         depth = render(segments.encode(ball), View(alpha, beta, gamma, (40, 44), 1.3), "octree-btf").depth
         iou, close = agreement(depth, march(ball, alpha, beta, gamma, (40, 44), 1.3), tolerance=0.03)
         assert iou >= 0.97 and close >= 0.99
-
-
-
-# ------------------------------------------------------------------ towards a vectorised octree-ftb
-# The bitmap value an octant finds on arrival follows a recursion with no bitmap at all (derived from the
-# procedures; see the issue note). This test keeps that derivation honest for whoever vectorises octree-ftb.
-
-def _arrivals_by_recursion(tree, vpn):
-    """out(X): B if X is blocked, its colour if an unblocked leaf; for an unblocked grey X, B iff all its back
-    children give B, else G. in(X): out(front sibling) for a back child; else in(parent) if B or W; else out of
-    the back child, in X's quadrant, of the node that gave the parent its G."""
-    axes = [a for a, _ in visible_axes(vpn)]
-    order = front_to_back_children(vpn)
-    near = np.array([1 if v > 0 else 0 for v in vpn])
-    label_of = {tuple(bits): label for label, bits in enumerate(octree.CHILD_OFFSETS.tolist())}
-    arrived, out = {}, {}
-
-    def visit(node, arriving, source):
-        arrived[node] = arriving
-        color = int(tree.color[node])
-        if all(v == BLOCKED for v in arriving.values()):
-            out[node] = {a: BLOCKED for a in axes}
-            return
-        if color != octree.GREY:
-            out[node] = {a: BLOCKED if color == octree.BLACK else WHITE for a in axes}
-            return
-        first = int(tree.first_child[node])
-        for label in order:
-            bits = octree.CHILD_OFFSETS[label]
-            child_in, child_source = {}, {}
-            for a in axes:
-                if bits[a] != near[a]:                    # the back child along a: its front sibling wrote it
-                    sibling = bits.copy()
-                    sibling[a] = near[a]
-                    child_source[a] = first + label_of[tuple(sibling)]
-                    child_in[a] = out[child_source[a]][a]
-                elif arriving[a] != MIXED:                # refined from the parent's B or W
-                    child_in[a], child_source[a] = arriving[a], None
-                else:                                     # written by the back child of the parent's source
-                    behind = bits.copy()
-                    behind[a] = 1 - near[a]
-                    child_source[a] = int(tree.first_child[source[a]]) + label_of[tuple(behind)]
-                    child_in[a] = out[child_source[a]][a]
-            visit(first + label, child_in, child_source)
-        out[node] = {a: BLOCKED if all(out[first + label][a] == BLOCKED for label in range(8)
-                                       if octree.CHILD_OFFSETS[label][a] != near[a]) else MIXED for a in axes}
-
-    if tree.color[0] == octree.GREY:
-        visit(0, {a: WHITE for a in axes}, {a: None for a in axes})
-    return arrived
-
-
-def test_blocking_bitmap_states_follow_a_recursion():
-    rng = np.random.default_rng(0)
-    for trial in range(25):
-        mask = rng.random((16, 16, 16)) < rng.uniform(0.2, 0.8)
-        mask[3:12, 2:10, 4:14] |= rng.random() < 0.5
-        alpha, beta = rng.uniform(-180, 180, 2)
-        if trial % 5 == 0:
-            alpha, beta = 0.0, float(rng.choice([45, -30, 120]))  # VPN y = 0: a two-face viewing class
-        view = View(alpha, beta, 0, (8, 8), 0.2)
-        arrivals = {}
-        render_octree_ftb_literal(segments.encode(mask), view, arrivals=arrivals)
-        vpn = vpn_from_angles(alpha, beta)
-        assert arrivals == _arrivals_by_recursion(segments.encode(mask).octree(), vpn)
