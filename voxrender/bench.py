@@ -16,7 +16,11 @@ It measures, on ``vhf_head`` at 300 HU (512 x 512 pictures at scale 1):
 * discrete ray casting with 6-, 26- and adaptive rays on a one-voxel-thick shell and on
   vhf_head: steps, time, leaks and misses (the line-voxelization paper's trade-off);
 * a 36-view turntable of vhf_head at 512 x 512 as one batch (1 and 2 workers) against 36
-  separate ``voxrender render`` commands.
+  separate ``voxrender render`` commands;
+* the octree papers' tables: every octree method and the dynamic screen at Zhao and Davis's
+  VPNs with their Table II and III statistics, on vhf_head and on their artificial object (a
+  checkerboard with 32 white, 32 black and 9 grey octants); and the sorted linear octree
+  against the z-buffer over a range of voxel counts (the linear-octree paper's Table 4).
 
 Results go to ``benchmark-results/results.md`` and ``results.json``.
 """
@@ -278,6 +282,81 @@ def bench_sorted_octree(repeat, sides=(16, 29, 32, 42)):
     return rows
 
 
+OCTREE_VPNS = [(1, -2, 1), (-1, -2, 1), (1, -1, 0), (0, -1, 0)]  # Zhao and Davis's Tables II and III
+OCTREE_METHODS = ("octree-btf", "octree-ftb", "octree-sort", "zbuffer", "ftb")  # ftb: the dynamic screen
+TABLE_II = ("black_faces", "black_visited", "white_visited", "grey_visited", "black_blocked", "white_blocked",
+            "grey_blocked", "scanlines_accumulated", "pixels_accumulated")
+
+
+def checkerboard(n=7, blocks=4):
+    """Zhao and Davis's artificial object: an octree of resolution ``n`` with 32 white, 32 black and 9 grey
+    octants, here a ``blocks``^3 checkerboard of cubes."""
+    side = 1 << n
+    z, y, x = np.indices((side, side, side)) // (side // blocks)
+    return (x + y + z) % 2 == 0
+
+
+def bench_octree(objects, repeat, size=512):
+    """Tables II and III: every octree method and the dynamic screen at the papers' VPNs, statistics of the
+    two octree traversals, and the one-off cost of the octree and its face adjacency."""
+    from .view import angles_from_vpn
+
+    result = {}
+    for name, encoded in objects.items():
+        started = time.perf_counter()
+        tree = encoded.octree()
+        built = time.perf_counter()
+        tree.white_neighbours, tree.white_to_white, tree.parent
+        adjacency = time.perf_counter() - built
+        counts = tree.counts()
+        rows = []
+        for vpn in OCTREE_VPNS:
+            view = View(*angles_from_vpn(vpn), (size, size), None)
+            row = {"vpn": list(vpn), "seconds": {}, "stats": {}}
+            for method in OCTREE_METHODS:
+                options = {"count_writes": False} if method == "zbuffer" else {}
+                seconds, image = median_seconds(lambda: render(encoded, view, method, **options), repeat)
+                row["seconds"][method] = seconds
+                if method in ("octree-btf", "octree-ftb"):
+                    row["stats"][method] = image.stats
+            rows.append(row)
+        result[name] = {"octree_s": built - started, "adjacency_s": adjacency, "n": tree.n,
+                        "white": counts["white"], "black": counts["black"], "grey": counts["grey"], "rows": rows}
+    return result
+
+
+def _octree_tables(octree_results):
+    lines = ["", "Octree methods at Zhao and Davis's VPNs (512 x 512, the volume fitted; median seconds, one run). "
+             "Table II: black faces scan-converted, octants visited (and of them blocked) by colour, time in black "
+             "octants, total time; Table III: scanlines and pixels accumulated:", ""]
+    for name, data in octree_results.items():
+        lines += [f"{name}: octree n = {data['n']}, {data['white']:,} white, {data['black']:,} black, "
+                  f"{data['grey']:,} grey octants; built in {data['octree_s']:.2f} s, face adjacency of its leaves "
+                  f"{data['adjacency_s']:.2f} s (both once per object, kept with it)", "",
+                  "| VPN | method | black faces | black visited (blocked) | white visited (blocked) | "
+                  "grey visited (blocked) | scanlines | pixels | s in black | total s |",
+                  "|---|---|---|---|---|---|---|---|---|---|"]
+        for row in data["rows"]:
+            vpn = "(" + ", ".join(str(v) for v in row["vpn"]) + ")"
+            for method in ("octree-btf", "octree-ftb"):
+                st = row["stats"][method]
+                blocked = {c: f" ({st[c + '_blocked']:,})" if c + "_blocked" in st else "" for c in ("black", "white", "grey")}
+                lines.append(f"| {vpn} | {method} | {st['black_faces']:,} | {st['black_visited']:,}{blocked['black']} | "
+                             f"{st['white_visited']:,}{blocked['white']} | {st['grey_visited']:,}{blocked['grey']} | "
+                             f"{st['scanlines_accumulated']:,} | {st['pixels_accumulated']:,} | "
+                             f"{st['black_seconds']:.3f} | {row['seconds'][method]:.3f} |")
+        lines += ["", "| VPN | " + " | ".join(OCTREE_METHODS) + " | % reduction ftb over btf (octree) | "
+                  "octree-btf/octree-ftb |", "|---|" + "---|" * (len(OCTREE_METHODS) + 2)]
+        for row in data["rows"]:
+            seconds = row["seconds"]
+            vpn = "(" + ", ".join(str(v) for v in row["vpn"]) + ")"
+            lines.append(f"| {vpn} | " + " | ".join(f"{seconds[m]:.3f}" for m in OCTREE_METHODS) +
+                         f" | {100 * (1 - seconds['octree-ftb'] / seconds['octree-btf']):.0f} % | "
+                         f"{seconds['octree-btf'] / seconds['octree-ftb']:.2f} |")
+        lines.append("")
+    return lines
+
+
 def markdown(results):
     methods = timed_methods()
     peers = ["vtk"] if results.get("vtk_version") else []
@@ -307,6 +386,8 @@ def markdown(results):
                 lines.append(f"| {name} | {connectivity} | {row['seconds']:.2f} | {row['steps_26']:,} | "
                              f"{row['steps_6']:,} | {row['steps_26'] + row['steps_6']:,} | {row['late_hits']:,} | "
                              f"{row['leaks']:,} | {row['misses']:,} |")
+    if results.get("octree"):
+        lines += _octree_tables(results["octree"])
     if results.get("sorted_octree"):
         lines += ["", "Sorted linear octree against the z-buffer (the linear-octree paper's Table 4; solid cubes, "
                   "256 x 256, median seconds):", "",
@@ -367,6 +448,8 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
                                                                                    "method": DEFAULT_METHOD},
             "scaling": bench_scaling(repeat, scaling_sizes),
             "batch": bench_batch(path),
+            "octree": bench_octree({f"vhf_head {THRESHOLD:g} HU": encoded,
+                                    "checkerboard 128^3": segments.encode(checkerboard())}, repeat),
             "sorted_octree": bench_sorted_octree(repeat),
             "raycast": bench_raycast(min(repeat, 3), {
                 "thin shell 128^3": (segments.encode(thin_shell()), View(30.0, 10.0, 0.0, (256, 256), 1.5)),
