@@ -151,3 +151,17 @@ def test_batch_command(tmp_path, stacks):
     assert len(read_summary(tmp_path / "o" / "summary.csv")) == 3
     result = CliRunner().invoke(main, ["batch", str(tmp_path / "nothing*"), "-o", str(tmp_path / "o")])
     assert result.exit_code == 2 and "no input matches" in result.stderr
+
+
+def test_octree_pictures_of_one_object_share_its_octree(stacks, tmp_path):
+    # A worker keeps the object it rendered last, so the octree methods build its octree once per object.
+    result = CliRunner().invoke(main, ["batch", str(stacks / "ball.npy"), "--threshold", "500", "--turntable", "3",
+                                       "--method", "octree-ftb", "--jobs", "1", "--size", "32", "-o",
+                                       str(tmp_path / "out")])
+    assert result.exit_code == 0, result.output
+    rows = read_summary(tmp_path / "out" / "summary.csv")
+    assert [row["status"] for row in rows] == ["ok"] * 3
+    path = next((tmp_path / "out" / ".voxrender-cache").glob("*.vxs"))
+    stamp = (path.stat().st_size, path.stat().st_mtime_ns)
+    assert batch._segments(str(path), stamp) is batch._segments(str(path), stamp)
+    assert batch._segments(str(path), stamp)._octree is not None

@@ -19,6 +19,7 @@ volume plus its mask.
 from __future__ import annotations
 
 import csv
+import functools
 import glob
 import hashlib
 import json
@@ -259,6 +260,13 @@ def encode_task(item, cache_dir):
                 "traceback": traceback.format_exc()}
 
 
+@functools.lru_cache(maxsize=2)
+def _segments(path, stamp):
+    """The segments at ``path`` (``stamp``: its size and time, so a remade file is read again), kept between the
+    tasks of a worker: the octree methods build the octree once per object, not once per picture."""
+    return segments.load(path)
+
+
 def render_task(item, view, index, segments_path, out_dir, options, encode_seconds):
     """Phase 2: render one view of one input and write its PNG; returns its summary row."""
     output = item.output(out_dir, view, index)
@@ -266,7 +274,8 @@ def render_task(item, view, index, segments_path, out_dir, options, encode_secon
            "gamma": view.gamma, "method": item.method, "output": str(output)}
     started = time.perf_counter()
     try:
-        encoded = segments.load(segments_path)
+        status = Path(segments_path).stat()
+        encoded = _segments(str(segments_path), (status.st_size, status.st_mtime_ns))
         picture = View(view.alpha, view.beta, view.gamma, options.size, options.scale)
         image = render(encoded, picture, item.method, supersample=options.supersample, fit=options.fit)
         shaded_at = time.perf_counter()
