@@ -317,8 +317,7 @@ def bench_octree(objects, repeat, size=512):
                 options = {"count_writes": False} if method == "zbuffer" else {}
                 seconds, image = median_seconds(lambda: render(encoded, view, method, **options), repeat)
                 row["seconds"][method] = seconds
-                if method in ("octree-btf", "octree-ftb"):
-                    row["stats"][method] = image.stats
+                row["stats"][method] = image.stats
             rows.append(row)
         result[name] = {"octree_s": built - started, "adjacency_s": adjacency, "n": tree.n,
                         "white": counts["white"], "black": counts["black"], "grey": counts["grey"], "rows": rows}
@@ -328,7 +327,8 @@ def bench_octree(objects, repeat, size=512):
 def _octree_tables(octree_results):
     lines = ["", "Octree methods at Zhao and Davis's VPNs (512 x 512, the volume fitted; median seconds, one run). "
              "Table II: black faces scan-converted, octants visited (and of them blocked) by colour, time in black "
-             "octants, total time; Table III: scanlines and pixels accumulated:", ""]
+             "octants, total time; Table III: scanlines and pixels accumulated. octree-sort and zbuffer break the "
+             "black octants into voxels: their faces, voxels and fragments (pixel-cube hits) are in those columns:", ""]
     for name, data in octree_results.items():
         lines += [f"{name}: octree n = {data['n']}, {data['white']:,} white, {data['black']:,} black, "
                   f"{data['grey']:,} grey octants; built in {data['octree_s']:.2f} s, face adjacency of its leaves "
@@ -345,6 +345,10 @@ def _octree_tables(octree_results):
                              f"{st['white_visited']:,}{blocked['white']} | {st['grey_visited']:,}{blocked['grey']} | "
                              f"{st['scanlines_accumulated']:,} | {st['pixels_accumulated']:,} | "
                              f"{st['black_seconds']:.3f} | {row['seconds'][method]:.3f} |")
+            for method in ("octree-sort", "zbuffer"):   # black octants broken into voxels; no W or G octants
+                st = row["stats"][method]
+                lines.append(f"| {vpn} | {method} | {st['faces']:,} | {st['voxels']:,} (voxels) | - | - | - | "
+                             f"{st['fragments']:,} | {row['seconds'][method]:.3f} | {row['seconds'][method]:.3f} |")
         lines += ["", "| VPN | " + " | ".join(OCTREE_METHODS) + " | % reduction ftb over btf (octree) | "
                   "octree-btf/octree-ftb |", "|---|" + "---|" * (len(OCTREE_METHODS) + 2)]
         for row in data["rows"]:
