@@ -82,7 +82,7 @@ def test_leaf_pairs_are_the_face_adjacent_leaves():
             assert set(zip(low.tolist(), high.tolist())) == expected
 
 
-def test_parents_and_white_neighbours():
+def test_parents_and_white_adjacency():
     rng = np.random.default_rng(8)
     tree = octree.build(rng.random((9, 7, 8)) < 0.4)
     children = tree.first_child[tree.first_child >= 0][:, None] + np.arange(8)
@@ -90,12 +90,13 @@ def test_parents_and_white_neighbours():
     assert tree.parent[0] == -1
     white = tree.white_leaves
     assert np.all((tree.color[white] == octree.WHITE) & (tree.first_child[white] < 0))
-    for direction, matrix in enumerate(tree.white_neighbours):
+    for direction in range(6):
         axis, high = divmod(direction, 2)
         low_leaves, high_leaves = tree.leaf_pairs[axis]
         source, target = (low_leaves, high_leaves) if high else (high_leaves, low_leaves)
-        keep = tree.color[source] == octree.WHITE
-        rows, cols = matrix.nonzero()
-        assert set(zip(white[rows].tolist(), cols.tolist())) == set(zip(source[keep].tolist(), target[keep].tolist()))
-        steps = tree.white_to_white[direction].nonzero()
-        assert np.all(tree.color[white[steps[1]]] == octree.WHITE)
+        for color, matrix, names in ((octree.WHITE, tree.white_to_white[direction], white),
+                                     (octree.BLACK, tree.white_to_black[direction], np.arange(len(tree.color)))):
+            keep = (tree.color[source] == octree.WHITE) & (tree.color[target] == color)
+            rows, cols = matrix.nonzero()
+            assert set(zip(white[rows].tolist(), names[cols].tolist())) == \
+                set(zip(source[keep].tolist(), target[keep].tolist()))

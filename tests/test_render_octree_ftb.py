@@ -7,7 +7,7 @@ from voxrender.render import render
 from voxrender.render.btf import render_btf
 from voxrender.render.clip import Clip
 from voxrender.render.octree_btf import render_octree_btf, visible_axes
-from voxrender.render.octree_ftb import open_faces, render_octree_ftb
+from voxrender.render.octree_ftb import render_octree_ftb, seen_from_the_front
 from voxrender.render.octree_ftb_literal import B as BLOCKED
 from voxrender.render.octree_ftb_literal import render_octree_ftb_literal
 from voxrender.view import View, angles_from_vpn, vpn_from_angles
@@ -90,7 +90,7 @@ def test_seen_white_leaves_are_those_the_bitmaps_leave_unblocked():
         render_octree_ftb_literal(encoded, view, arrivals=arrivals)
         tree = encoded.octree()
         axes = visible_axes(vpn_from_angles(view.alpha, view.beta, view.gamma))
-        _, seen = open_faces(tree, axes)
+        seen = seen_from_the_front(tree, axes)[0]
         unblocked_white = {node for node, found in arrivals.items() if tree.color[node] == octree.WHITE
                            and not all(value == BLOCKED for value in found.values())}
         assert set(np.flatnonzero(seen).tolist()) == unblocked_white

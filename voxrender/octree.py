@@ -126,39 +126,40 @@ class RegionOctree:
 
     @cached_property
     def white_leaves(self):
-        """The white leaves, in node order: row ``k`` of :attr:`white_neighbours` is node ``white_leaves[k]``."""
+        """The white leaves, in node order: row ``k`` of :attr:`white_to_white` is node ``white_leaves[k]``."""
         return np.flatnonzero((self.color == WHITE) & (self.first_child < 0))
 
     @cached_property
-    def white_neighbours(self):
-        """The leaves face-adjacent to each white leaf, one sparse matrix per direction ``2 * axis + high``
-        (``high`` 1 for the neighbours on the high side): entry ``[k, j]`` is 1 when white leaf
-        ``white_leaves[k]`` has node ``j`` across that face.
+    def white_to_white(self):
+        """The steps through empty space: one sparse matrix per direction ``2 * axis + high`` (``high`` 1 for the
+        neighbours on the high side), entry ``[k, m]`` 1 when white leaves ``white_leaves[k]`` and
+        ``white_leaves[m]`` share part of a face that way.  One spare last row and column for graph searches to
+        start from.
 
         >>> tree = build(np.array([[[1, 0], [0, 0]], [[0, 0], [0, 0]]], bool))   # voxel (0, 0, 0) black
         >>> corner = np.searchsorted(tree.white_leaves, 1 + 0)   # label 0: the white voxel at (1, 1, 1)
-        >>> [m[corner].nnz for m in tree.white_neighbours]       # one neighbour on each low side
+        >>> [m[corner].nnz for m in tree.white_to_white]         # one white neighbour on each low side
         [1, 0, 1, 0, 1, 0]
         """
-        return self._white_rows(white_targets=False)
+        return self._white_rows(WHITE)
 
     @cached_property
-    def white_to_white(self):
-        """The steps through empty space: :attr:`white_neighbours` between white leaves only, both numbered as
-        in :attr:`white_leaves`; one spare last row and column for graph searches to start from."""
-        return self._white_rows(white_targets=True)
+    def white_to_black(self):
+        """As :attr:`white_to_white`, to the black leaves across each face: entry ``[k, j]`` 1 when white leaf
+        ``white_leaves[k]`` and black leaf ``j`` (a node number) share part of a face that way."""
+        return self._white_rows(BLACK)
 
-    def _white_rows(self, white_targets):
+    def _white_rows(self, target_color):
         white = self.color == WHITE
         rows = len(self.white_leaves) + 1
         tables = []
         for low, high in self.leaf_pairs:
             for source, target in ((high, low), (low, high)):      # the low side first: direction 2 * axis
-                keep = white[source] & (white[target] if white_targets else True)
+                keep = white[source] & (self.color[target] == target_color)
                 source, target = np.searchsorted(self.white_leaves, source[keep]), target[keep]
-                if white_targets:
+                if target_color == WHITE:
                     target = np.searchsorted(self.white_leaves, target)
-                shape = (rows, rows if white_targets else len(self.color))
+                shape = (rows, rows if target_color == WHITE else len(self.color))
                 tables.append(csr_matrix((np.ones(len(source)), (source, target)), shape=shape))
         return tables
 

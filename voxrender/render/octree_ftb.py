@@ -13,13 +13,15 @@ statistic with the literal version):
    octree space or a white leaf that was *seen*, and a white leaf is seen when a front face of
    it touches the boundary or a seen white leaf.  The seen leaves are the white leaves reachable
    from the front of the octree space by steps away from the viewer across faces: one
-   breadth-first search over face-adjacent white leaves (:attr:`RegionOctree.leaf_pairs`).
+   breadth-first search over face-adjacent white leaves (:attr:`RegionOctree.white_to_white`).
    It never reaches inside a blocked octant.
-3. The traversal then goes down one depth at a time, every octant of a depth at once: an
-   octant is blocked when none of its front faces is open; blocked octants are counted and
-   dropped with their subtrees (never descended); unblocked grey octants hand on their eight
-   children; unblocked black leaves scan-convert their open faces.
-4. Painting "un-painted pixels only" in the FTB order is done as: every open face's pixels, keeping
+3. A grey octant off the boundary is unblocked exactly when it holds a seen white leaf or a black
+   leaf whose front face touches one: a seen leaf across its front face lies against such a leaf
+   inside, and a path of seen leaves into it from outside must cross one of its front faces.
+4. The traversal then goes down one depth at a time, every octant of a depth at once: blocked
+   octants are counted and dropped with their subtrees (never descended); unblocked grey octants
+   hand on their eight children; unblocked black leaves scan-convert their open faces.
+5. Painting "un-painted pixels only" in the FTB order is done as: every open face's pixels, keeping
    per pixel the nearest.  In FTB order the first face to reach a pixel is the nearest, except on a
    ray that runs along an edge two faces share (see the ties in :mod:`.octree_ftb_literal`), where
    both versions keep the nearer.
@@ -42,7 +44,7 @@ __all__ = ["render_octree_ftb"]
 
 
 def _behind(axes):
-    """Direction codes of :attr:`RegionOctree.white_neighbours` that step away from the viewer on each axis."""
+    """Direction codes of :attr:`RegionOctree.white_to_white` that step away from the viewer on each axis."""
     return [2 * axis + (0 if side > 0 else 1) for axis, side in axes]
 
 
@@ -66,18 +68,17 @@ def _front_boundary_leaves(tree, axes, color):
     return np.concatenate(found)
 
 
-def open_faces(tree, axes):
-    """Which front faces touch a white leaf the viewer sees: bit ``i`` of ``faces[node]`` for visible axis ``i``;
-    and ``seen``, those white leaves.
+def seen_from_the_front(tree, axes):
+    """What the viewer sees of the empty space, from which every blocking decision follows.
 
-    ``seen`` comes from a breadth-first search that starts at the white leaves on the front of the octree
-    space and steps away from the viewer across faces (point 2 of the module docstring); the leaves it
-    steps onto have that front face open, and so has every ancestor whose front face holds it.
+    Returns ``seen``, the white leaves the viewer sees (points 1 and 2 of the module docstring);
+    ``faces``, for each black leaf, bit ``i`` set when its front face on visible axis ``i`` touches a seen
+    leaf; and ``lit``, the nodes holding a seen leaf or a black leaf with such a face (point 3).
 
-    >>> tree = octree.build(np.array([[[0, 0], [0, 0]], [[0, 0], [0, 1]]], bool))
-    >>> faces, seen = open_faces(tree, visible_axes((1, 1, 1)))
-    >>> int(seen.sum()), int(faces[1 + 7])   # seven white voxels; the black one (label 7) has three open faces
-    (7, 7)
+    >>> tree = octree.build(np.array([[[0, 0], [0, 0]], [[0, 0], [0, 1]]], bool))   # voxel (1, 1, 1) black
+    >>> seen, faces, lit = seen_from_the_front(tree, visible_axes((-1, -1, -1)))    # seen from the far side
+    >>> int(seen.sum()), int(faces[1 + 0]), bool(lit[0])   # seven white voxels; all 3 faces of label 0 open
+    (7, 7, True)
     """
     behind = _behind(axes)
     white = tree.white_leaves                               # the search runs on their numbers 0..len - 1
@@ -91,14 +92,12 @@ def open_faces(tree, axes):
     seen[white[rows]] = True
     faces = np.zeros(len(tree.color), np.uint8)
     for i, direction in enumerate(behind):
-        faces[tree.white_neighbours[direction][rows].indices] |= np.uint8(1 << i)
-    near_bits = _near_bits(axes)
+        faces[tree.white_to_black[direction][rows].indices] |= np.uint8(1 << i)
+    lit = seen | (faces != 0)
     for level in range(tree.n, 0, -1):                       # up to the ancestors
         low, high = tree.level_starts[level], tree.level_starts[level + 1]
-        nodes = low + np.flatnonzero(faces[low:high])
-        parents = tree.parent[nodes]
-        np.bitwise_or.at(faces, parents, faces[nodes] & near_bits[nodes - tree.first_child[parents]])
-    return faces, seen
+        lit[tree.parent[low + np.flatnonzero(lit[low:high])]] = True
+    return seen, faces, lit
 
 
 def _new_stats():
@@ -130,7 +129,7 @@ def render_octree_ftb(segments, view, progress=None, clip=None):
     height, width = view.size
     image = np.full(height * width, np.inf)
     stats = _new_stats()
-    faces, seen = open_faces(tree, axes)
+    seen, faces, lit = seen_from_the_front(tree, axes)
     stats.update(white_seen=int(seen.sum()), black_seconds=0.0)
     near_bits = _near_bits(axes)[order]
 
@@ -138,8 +137,8 @@ def render_octree_ftb(segments, view, progress=None, clip=None):
     on_boundary = np.full(1, (1 << len(axes)) - 1, np.uint8)   # the root's front faces are the boundary
     while len(nodes):
         color = tree.color[nodes]
-        face_open = faces[nodes] | on_boundary
-        unblocked = face_open != 0
+        face_open = faces[nodes] | on_boundary        # (the faces of black leaves are all that is painted)
+        unblocked = lit[nodes] | (face_open != 0)
         for value, name in ((octree.WHITE, "white"), (octree.BLACK, "black"), (octree.GREY, "grey")):
             of_color = color == value
             stats[f"{name}_visited"] += int(of_color.sum())
