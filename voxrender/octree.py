@@ -152,13 +152,15 @@ class RegionOctree:
     def _white_rows(self, target_color):
         white = self.color == WHITE
         rows = len(self.white_leaves) + 1
+        number = np.full(len(self.color), -1, np.int64)       # node -> its number among the white leaves
+        number[self.white_leaves] = np.arange(len(self.white_leaves))
         tables = []
         for low, high in self.leaf_pairs:
             for source, target in ((high, low), (low, high)):      # the low side first: direction 2 * axis
                 keep = white[source] & (self.color[target] == target_color)
-                source, target = np.searchsorted(self.white_leaves, source[keep]), target[keep]
+                source, target = number[source[keep]], target[keep]
                 if target_color == WHITE:
-                    target = np.searchsorted(self.white_leaves, target)
+                    target = number[target]
                 shape = (rows, rows if target_color == WHITE else len(self.color))
                 tables.append(csr_matrix((np.ones(len(source)), (source, target)), shape=shape))
         return tables
