@@ -346,8 +346,10 @@ def _octree_tables(octree_results):
             vpn = "(" + ", ".join(str(v) for v in row["vpn"]) + ")"
             for method in ("octree-btf", "octree-ftb"):
                 st = row["stats"][method]
-                blocked = {c: f" ({st[c + '_blocked']:,})" if c + "_blocked" in st else "" for c in ("black", "white", "grey")}
-                lines.append(f"| {vpn} | {method} | {st['black_faces']:,} | {st['black_visited']:,}{blocked['black']} | "
+                blocked = {c: f" ({st[c + '_blocked']:,})" if c + "_blocked" in st else ""
+                           for c in ("black", "white", "grey")}
+                lines.append(f"| {vpn} | {method} | {st['black_faces']:,} | "
+                             f"{st['black_visited']:,}{blocked['black']} | "
                              f"{st['white_visited']:,}{blocked['white']} | {st['grey_visited']:,}{blocked['grey']} | "
                              f"{st['scanlines_accumulated']:,} | {st['pixels_accumulated']:,} | "
                              f"{st['black_seconds']:.3f} | {row['seconds'][method]:.3f} |")

@@ -32,7 +32,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import breadth_first_order
 
@@ -51,17 +50,17 @@ def _behind(axes):
 def _near_bits(axes):
     """Per child label, bit ``i`` set when the child lies in the half towards the viewer on visible axis ``i``:
     then the child's front face on that axis lies on its parent's front face."""
-    return np.array([sum(1 << i for i, (axis, side) in enumerate(axes) if octree.CHILD_OFFSETS[label, axis] == (side > 0))
-                     for label in range(8)], np.uint8)
+    near = [[octree.CHILD_OFFSETS[label, axis] == (side > 0) for axis, side in axes] for label in range(8)]
+    return np.array([sum(1 << i for i, is_near in enumerate(row) if is_near) for row in near], np.uint8)
 
 
-def _front_boundary_leaves(tree, axes, color):
-    """Leaves of ``color`` with a front face on the boundary of the octree space, found down the front layers."""
+def _white_leaves_in_front(tree, axes):
+    """White leaves with a front face on the boundary of the octree space, found down the front layers."""
     near_bits = _near_bits(axes)
     found, nodes, on_boundary = [], np.zeros(1, np.int64), np.full(1, (1 << len(axes)) - 1, np.uint8)
     while len(nodes):
         leaf = tree.first_child[nodes] < 0
-        found.append(nodes[leaf & (tree.color[nodes] == color)])
+        found.append(nodes[leaf & (tree.color[nodes] == octree.WHITE)])
         children = (tree.first_child[nodes[~leaf]][:, None] + np.arange(8)).ravel()
         on_boundary = (on_boundary[~leaf][:, None] & near_bits).ravel()
         nodes, on_boundary = children[on_boundary != 0], on_boundary[on_boundary != 0]
@@ -82,7 +81,7 @@ def seen_from_the_front(tree, axes):
     """
     behind = _behind(axes)
     white = tree.white_leaves                               # the search runs on their numbers 0..len - 1
-    sources = np.searchsorted(white, _front_boundary_leaves(tree, axes, octree.WHITE))
+    sources = np.searchsorted(white, _white_leaves_in_front(tree, axes))
     start = csr_matrix((np.ones(len(sources)), sources, np.r_[np.zeros(len(white) + 1, np.int64), len(sources)]),
                        shape=(len(white) + 1, len(white) + 1))    # the spare row steps onto the front
     graph = sum((tree.white_to_white[direction] for direction in behind), start)
