@@ -102,3 +102,17 @@ def test_vhf_head_against_marcher():
     depth = render(segments.encode(mask), view).depth
     iou, close = agreement(depth, march(mask, 30, 20, 0, (96, 96), 0.9, step=0.05), tolerance=1.5)
     assert iou >= 0.99 and close >= 0.98
+
+
+def test_rays_along_faces_between_slices_take_the_nearer_voxel():
+    # Looking along -y with 5 slices and an even picture height, every row of pixel centres lies on a face
+    # between two slices; a ray there touches voxels of both slices, and the contract takes the nearer.
+    rng = np.random.default_rng(1)
+    mask = rng.random((5, 6, 6)) < 0.3
+    view = View(90, 0, 0, (8, 8), 1.0)           # VPN (0, -1, 0)
+    encoded = segments.encode(mask)
+    expected = march(mask, 90, 0, 0, (8, 8), 1.0, step=0.01)
+    for depth in (render_btf(encoded, view)[0], render_btf_literal(encoded, view)[0],
+                  render(encoded, view, "octree-btf").depth, render(encoded, view, "octree-ftb").depth):
+        assert np.array_equal(np.isfinite(depth), np.isfinite(expected))
+        assert np.allclose(depth[np.isfinite(depth)], expected[np.isfinite(expected)], atol=0.02)

@@ -141,10 +141,7 @@ def test_vhf_head_octree_ftb_equals_the_literal_version_and_btf():
         drop_own_counts(stats)
         assert stats == expected
         assert np.array_equal(depth, expected_depth)
+        # At (1, -1, 0) and (0, -1, 0) rows of pixel centres lie exactly on faces between slices: the ties
+        # that both versions (and btf) settle by keeping the nearer depth.
         assert np.array_equal(depth, render_octree_btf(encoded, view)[0])
-        # At (1, -1, 0) and (0, -1, 0) rows of pixel centres lie exactly on faces between slices. Where two
-        # voxels' closed cubes both meet such a ray, the octree methods keep the nearer entry (the contract);
-        # btf paints slice over slice, so a later slice beside the ray may cover a nearer one there.
-        btf = render_btf(encoded, view)[0]
-        assert np.array_equal(np.isfinite(depth), np.isfinite(btf))
-        assert np.all(depth[np.isfinite(btf)] <= btf[np.isfinite(btf)])
+        assert np.array_equal(depth, render_btf(encoded, view)[0])

@@ -12,6 +12,12 @@ slice the last voxel painted at a pixel is the nearest one, so the slice's
 paint is its per-pixel minimum depth, and that is painted over the image.
 :func:`render_btf_literal` paints voxel by voxel, as the paper does; it is the
 test oracle.
+
+Ties: in back-to-front order a later voxel is never farther along a ray than an earlier one,
+except on a ray that only touches two closed cubes on a shared face or edge (pixel centres
+exactly on voxel boundaries, in axis-aligned views): slices side by side have no depth order
+there.  Both versions keep the nearer depth when painting, which changes nothing elsewhere and
+keeps the contract there (painting over gave the farther voxel on a third of such a view's pixels).
 """
 
 from __future__ import annotations
@@ -124,7 +130,7 @@ def render_btf(segments, view, progress=None, clip=None):
             continue
         pixels, depths, _ = paint_voxels(matrix, view, segments.shape, z, y, x)
         np.minimum.at(buffer, pixels, depths)
-        image[pixels] = buffer[pixels]
+        image[pixels] = np.minimum(image[pixels], buffer[pixels])   # nearer, or a tie: see the module
         buffer[pixels] = np.inf
         stats["slices"] += 1
         stats["rows"] += len(np.unique(y))
@@ -170,7 +176,7 @@ def render_btf_literal(segments, view, clip=None):
                             continue
                         hit, entry = ray_cube_entry(columns[i] - xc, rows[j] - yc, matrix)
                         if hit:
-                            image[j, i] = zc + entry
+                            image[j, i] = min(image[j, i], zc + entry)
                             stats["pixel_writes"] += 1
         stats["slices"] += slice_has_voxels
     return image.astype(np.float32), stats
