@@ -24,6 +24,7 @@ def views():
     rng = np.random.default_rng(5)
     for vpn in PAPER_VPNS:
         yield View(*angles_from_vpn(vpn), (32, 34), 1.4)
+    yield View(90, 0, 0, (9, 8), 1.0)   # VPN (0, -1, 0): rows of pixel centres on faces between slices (ties)
     for _ in range(4):
         yield View(*rng.uniform(-180, 180, 2), rng.uniform(-90, 90), (32, 34), float(rng.uniform(0.6, 2.0)))
 
@@ -84,9 +85,10 @@ def test_clipped_octree_views():
     assert_same(render_octree_ftb_literal(encoded, view, clip=clip)[0], expected)
 
 
-def test_octree_btf_against_the_marcher(ball):
+@pytest.mark.parametrize("method", ["octree-btf", "octree-ftb"])
+def test_octree_traversals_against_the_marcher(ball, method):
     for vpn in PAPER_VPNS:
         alpha, beta, gamma = angles_from_vpn(vpn)
-        depth = render(segments.encode(ball), View(alpha, beta, gamma, (40, 44), 1.3), "octree-btf").depth
+        depth = render(segments.encode(ball), View(alpha, beta, gamma, (40, 44), 1.3), method).depth
         iou, close = agreement(depth, march(ball, alpha, beta, gamma, (40, 44), 1.3), tolerance=0.03)
         assert iou >= 0.97 and close >= 0.99

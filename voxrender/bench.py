@@ -284,8 +284,6 @@ def bench_sorted_octree(repeat, sides=(16, 29, 32, 42)):
 
 OCTREE_VPNS = [(1, -2, 1), (-1, -2, 1), (1, -1, 0), (0, -1, 0)]  # Zhao and Davis's Tables II and III
 OCTREE_METHODS = ("octree-btf", "octree-ftb", "octree-sort", "zbuffer", "ftb")  # ftb: the dynamic screen
-TABLE_II = ("black_faces", "black_visited", "white_visited", "grey_visited", "black_blocked", "white_blocked",
-            "grey_blocked", "scanlines_accumulated", "pixels_accumulated")
 
 
 def checkerboard(n=7, blocks=4):

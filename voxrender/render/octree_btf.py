@@ -140,8 +140,8 @@ def render_octree_btf_literal(segments, view, clip=None):
         if color == octree.BLACK:
             for axis, side in visible_axes(vpn):
                 pixels, depths, _, scanlines = _paint_faces(tree, np.array([node]), axis, side, view, segments.shape)
-                for pixel, depth in zip(pixels, depths):   # painted in order: later (nearer) overwrites
-                    image[pixel] = depth
+                for pixel, depth in zip(pixels, depths):   # painted in order: later (nearer) overwrites,
+                    image[pixel] = min(image[pixel], depth)  # but a ray along a shared edge keeps the nearer
                 stats["black_faces"] += 1
                 stats["scanlines_accumulated"] += scanlines
                 stats["pixels_accumulated"] += len(pixels)
