@@ -99,7 +99,8 @@ def seen_from_the_front(tree, axes):
     return seen, faces, lit
 
 
-def _new_stats():
+def new_stats():
+    """Zhao and Davis's Table II and III counts, zero; both versions of octree-ftb fill them."""
     stats = {f"{c}_{what}": 0 for c in ("white", "black", "grey") for what in ("visited", "blocked")}
     stats.update(black_faces=0, scanlines_accumulated=0, pixels_accumulated=0, pixels_painted=0)
     return stats
@@ -127,7 +128,7 @@ def render_octree_ftb(segments, view, progress=None, clip=None):
     order = np.array(front_to_back_children(vpn))
     height, width = view.size
     image = np.full(height * width, np.inf)
-    stats = _new_stats()
+    stats = new_stats()
     seen, faces, lit = seen_from_the_front(tree, axes)
     stats.update(white_seen=int(seen.sum()), black_seconds=0.0)
     near_bits = _near_bits(axes)[order]

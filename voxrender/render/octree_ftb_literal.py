@@ -30,6 +30,7 @@ import numpy as np
 from .. import octree
 from ..view import vpn_from_angles
 from .octree_btf import _paint_faces, _tree, front_to_back_children, visible_axes
+from .octree_ftb import new_stats
 
 __all__ = ["render_octree_ftb_literal", "BlockingBitmap", "QUAD_TAB", "ind_tab"]
 
@@ -93,9 +94,7 @@ def render_octree_ftb_literal(segments, view, clip=None, arrivals=None):
     order = front_to_back_children(vpn)
     height, width = view.size
     image = np.full(height * width, np.inf)
-    stats = {f"{c}_{what}": 0 for c in ("white", "black", "grey") for what in ("visited", "blocked")}
-    stats.update(black_faces=0, scanlines_accumulated=0, pixels_accumulated=0, pixels_painted=0,
-                 bitmap_bytes=0)
+    stats = new_stats()
     bitmaps = {axis: BlockingBitmap(tree.n) for axis, _ in axes}
     stats["bitmap_bytes"] = sum(len(b.bits) for b in bitmaps.values())
 
