@@ -115,29 +115,26 @@ def test_2d_switch_from_8_to_4_connectivity():
     assert never is None and len(no_switch) == 20
 
 
+def _stepped_paths(starts, ends, steps, six):
+    """The voxels a Stepper visits on each line, ``steps[i]`` steps in one mode (``six``: 6-steps)."""
+    stepper = lines.Stepper(starts, ends)
+    paths = [[v] for v in stepper.voxels]
+    for k in range(int(steps.max())):
+        stepper.step(k < steps, np.full(len(steps), six))
+        for i, v in enumerate(stepper.voxels):
+            if k < steps[i]:
+                paths[i].append(v)
+    return [np.array(path) for path in paths]
+
+
 def test_stepper_26_and_6_modes_match_the_single_line_algorithms():
     starts, ends = random_segments(50, 7, integer=True)
-    stepper = lines.Stepper(starts, ends)
-    n = lines.d26(ends - starts)
-    paths = [[v] for v in stepper.voxels]
-    for k in range(int(n.max())):
-        stepper.step(k < n, np.zeros(len(n), bool))
-        for i, v in enumerate(stepper.voxels):
-            if k < n[i]:
-                paths[i].append(v)
-    for s, e, path in zip(starts, ends, paths):
-        assert np.array_equal(np.array(path), lines.line26(s, e))
-    real_starts, real_ends = random_segments(50, 8)
-    stepper = lines.Stepper(real_starts, real_ends)
-    n = lines.d6(np.floor(real_ends + 0.5) - np.floor(real_starts + 0.5))
-    paths = [[v] for v in stepper.voxels]
-    for k in range(int(n.max())):
-        stepper.step(k < n, np.ones(len(n), bool))
-        for i, v in enumerate(stepper.voxels):
-            if k < n[i]:
-                paths[i].append(v)
-    for s, e, path in zip(real_starts, real_ends, paths):
-        assert np.array_equal(np.array(path), lines.line6_tripod(s, e))
+    for s, e, path in zip(starts, ends, _stepped_paths(starts, ends, lines.d26(ends - starts), six=False)):
+        assert np.array_equal(path, lines.line26(s, e))
+    starts, ends = random_segments(50, 8)
+    steps = lines.d6(np.floor(ends + 0.5) - np.floor(starts + 0.5))
+    for s, e, path in zip(starts, ends, _stepped_paths(starts, ends, steps, six=True)):
+        assert np.array_equal(path, lines.line6_tripod(s, e))
 
 
 def test_switching_keeps_the_decision_variables_consistent():
