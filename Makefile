@@ -20,7 +20,7 @@ test: $(VENV)/.installed
 	$(BIN)/python -m pytest
 
 benchmark: $(VENV)/.installed
-	$(BIN)/python -m voxrender.bench
+	$(BIN)/python -m benchmarks.bench
 
 samples: $(VENV)/.installed
 	$(BIN)/voxrender samples samples

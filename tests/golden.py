@@ -3,12 +3,14 @@
 import tempfile
 from pathlib import Path
 
-from voxrender import io, samples
+from click.testing import CliRunner
+
+from voxrender.cli import main
 
 GOLDEN = Path(__file__).resolve().parent / "golden"
 
 if __name__ == "__main__":
     with tempfile.TemporaryDirectory() as folder:
-        rgb, _ = samples.demo_picture(folder)
-    io.write_png(GOLDEN / "demo.png", rgb)
+        result = CliRunner().invoke(main, ["demo", "-o", str(GOLDEN / "demo.png"), "--samples-folder", folder])
+        assert result.exit_code == 0, result.output
     print(GOLDEN / "demo.png")

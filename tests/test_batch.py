@@ -9,7 +9,8 @@ from click.testing import CliRunner
 from voxrender import batch
 from voxrender.cli import main
 from voxrender.errors import InputError
-from voxrender.pipeline import PrepOptions
+from voxrender.picture import RenderOptions
+from voxrender.pipeline import PrepOptions, ReadOptions
 from voxrender.view import PRESETS, rotation_matrix
 
 
@@ -30,9 +31,10 @@ def read_summary(path):
         return list(csv.DictReader(f))
 
 
-def items(paths, views=None):
-    return batch.items_from([str(p) for p in paths], [], batch.ReadOptions(), PrepOptions(threshold=500), "ftb",
-                            views or batch.parse_views(["anterior"], ["30,20,10"]), "{name}/{view}.png")
+def items(paths, views=None, size=(32, 32)):
+    return batch.items_from([str(p) for p in paths], [], ReadOptions(), PrepOptions(threshold=500),
+                            RenderOptions(size=size), views or batch.parse_views(["anterior"], [(30, 20, 10)]),
+                            batch.Patterns())
 
 
 def test_turntable_turns_the_object_about_its_axis():
@@ -59,8 +61,8 @@ def test_manifests(tmp_path, stacks):
                                     f"{stacks / 'ball.npy'},500,\"left;30,0,0\",btf,{{name}}-{{view}}.png\n"
                                     "in/box.npy,,,,\n")
     rows = batch.read_manifest(tmp_path / "m.csv")
-    made = batch.items_from([], rows, batch.ReadOptions(), PrepOptions(threshold=700), "ftb",
-                            batch.parse_views(), "{name}/{view}.png")
+    made = batch.items_from([], rows, ReadOptions(), PrepOptions(threshold=700), RenderOptions(),
+                            batch.parse_views(), batch.Patterns())
     assert [v.label for v in made[0].views] == ["left", "a30_b0_g0"] and made[0].method == "btf"
     assert made[0].prepare.threshold == 500 and made[1].prepare.threshold == 700
     assert made[1].input == str(tmp_path / "in" / "box.npy")
@@ -73,8 +75,8 @@ def test_manifests(tmp_path, stacks):
 
 def test_batch_renders_reports_failures_and_resumes(tmp_path, stacks):
     out = tmp_path / "out"
-    work = items([stacks / "ball.npy", stacks / "broken.npy", stacks / "box.npy"])
-    rows = batch.run_batch(work, out, batch.RenderOptions(size=(40, 48)), jobs=1)
+    work = items([stacks / "ball.npy", stacks / "broken.npy", stacks / "box.npy"], size=(40, 48))
+    rows = batch.run_batch(work, out, jobs=1)
     assert [r["status"] for r in rows] == ["ok", "ok", "failed", "failed", "ok", "ok"]
     assert "broken.npy" in rows[2]["error"]
     summary = read_summary(out / "summary.csv")
@@ -86,13 +88,13 @@ def test_batch_renders_reports_failures_and_resumes(tmp_path, stacks):
     # A run killed half-way leaves whole pictures only; a truncated or missing one is made again.
     (out / "box" / "anterior.png").unlink()
     (out / "ball" / "anterior.png").write_bytes((out / "ball" / "anterior.png").read_bytes()[:50])
-    again = batch.run_batch(work, out, batch.RenderOptions(size=(40, 48)), jobs=1)
+    again = batch.run_batch(work, out, jobs=1)
     assert [r["status"] for r in again] == ["ok", "done earlier", "failed", "failed", "ok", "done earlier"]
     assert iio.imread(out / "ball" / "anterior.png").shape == (40, 48, 3)
 
 
 def test_cache_is_keyed_by_content_and_options(tmp_path, stacks):
-    read = batch.ReadOptions()
+    read = ReadOptions()
     key = batch.cache_key(stacks / "ball.npy", read, PrepOptions(threshold=500))
     assert key == batch.cache_key(stacks / "ball.npy", read, PrepOptions(threshold=500))
     assert key != batch.cache_key(stacks / "ball.npy", read, PrepOptions(threshold=501))
@@ -102,8 +104,8 @@ def test_cache_is_keyed_by_content_and_options(tmp_path, stacks):
 
 def test_worker_processes_give_the_same_pictures(tmp_path, stacks):
     work = items([stacks / "ball.npy", stacks / "box.npy"])
-    batch.run_batch(work, tmp_path / "one", batch.RenderOptions(size=(32, 32)), jobs=1)
-    batch.run_batch(work, tmp_path / "two", batch.RenderOptions(size=(32, 32)), jobs=2)
+    batch.run_batch(work, tmp_path / "one", jobs=1)
+    batch.run_batch(work, tmp_path / "two", jobs=2)
     for name in ("ball/anterior.png", "box/a30_b20_g10.png"):
         assert np.array_equal(iio.imread(tmp_path / "one" / name), iio.imread(tmp_path / "two" / name))
 
@@ -111,17 +113,17 @@ def test_worker_processes_give_the_same_pictures(tmp_path, stacks):
 def test_local_dask_cluster(tmp_path, stacks):
     pytest.importorskip("distributed", reason="Dask is the extra 'distributed'")
     work = items([stacks / "ball.npy", stacks / "broken.npy"])
-    rows = batch.run_batch(work, tmp_path / "dask", batch.RenderOptions(size=(32, 32)), jobs=2, scheduler="local")
+    rows = batch.run_batch(work, tmp_path / "dask", jobs=2, scheduler="local")
     assert [r["status"] for r in rows] == ["ok", "ok", "failed", "failed"]
     reference = tmp_path / "ref"
-    batch.run_batch(work[:1], reference, batch.RenderOptions(size=(32, 32)), jobs=1)
+    batch.run_batch(work[:1], reference, jobs=1)
     assert np.array_equal(iio.imread(tmp_path / "dask" / "ball" / "anterior.png"),
                           iio.imread(reference / "ball" / "anterior.png"))
 
 
 def test_turntable_animation(tmp_path, stacks):
-    work = items([stacks / "ball.npy"], batch.parse_views(turntable_count=6))
-    batch.run_batch(work, tmp_path, batch.RenderOptions(size=(24, 24)), jobs=1, animations=["gif"])
+    work = items([stacks / "ball.npy"], batch.parse_views(turntable_count=6), size=(24, 24))
+    batch.run_batch(work, tmp_path, jobs=1, animations=["gif"])
     frames = iio.imread(tmp_path / "ball.gif")
     assert frames.shape[:3] == (6, 24, 24)
 
@@ -129,18 +131,22 @@ def test_turntable_animation(tmp_path, stacks):
 def test_mp4_animation(tmp_path, stacks):
     pytest.importorskip("imageio_ffmpeg", reason="MP4 is the extra 'video'")
     work = items([stacks / "ball.npy"], batch.parse_views(turntable_count=4))
-    batch.run_batch(work, tmp_path, batch.RenderOptions(size=(32, 32)), jobs=1, animations=["mp4"])
+    batch.run_batch(work, tmp_path, jobs=1, animations=["mp4"])
     assert (tmp_path / "ball.mp4").stat().st_size > 0
 
 
 def test_patterns_are_checked(tmp_path, stacks):
     work = items([stacks / "ball.npy"])
-    work[0].pattern = "{name}.png"
+    work[0].patterns = batch.Patterns("{name}.png")
     with pytest.raises(InputError, match="twice"):
         batch.run_batch(work, tmp_path, jobs=1)
-    work[0].pattern = "{nope}/{view}.png"
+    work[0].patterns = batch.Patterns("{nope}/{view}.png")
     with pytest.raises(InputError, match="not valid"):
         batch.run_batch(work, tmp_path, jobs=1)
+    work[0].patterns = batch.Patterns(depth="{name}/{view}.png")
+    with pytest.raises(InputError, match="must end in .npy") as info:
+        batch.run_batch(work, tmp_path, jobs=1)
+    assert info.value.parameter == "depth"
 
 
 def test_batch_command(tmp_path, stacks):
@@ -163,5 +169,5 @@ def test_octree_pictures_of_one_object_share_its_octree(stacks, tmp_path):
     assert [row["status"] for row in rows] == ["ok"] * 3
     path = next((tmp_path / "out" / ".voxrender-cache").glob("*.vxs"))
     stamp = (path.stat().st_size, path.stat().st_mtime_ns)
-    assert batch._segments(str(path), stamp) is batch._segments(str(path), stamp)
-    assert batch._segments(str(path), stamp)._octree is not None
+    assert batch._encoded(str(path), stamp) is batch._encoded(str(path), stamp)
+    assert batch._encoded(str(path), stamp)._octree is not None

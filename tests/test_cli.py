@@ -10,7 +10,8 @@ from click.testing import CliRunner
 from conftest import ROOT, data_path
 from dicom_files import write_series
 from voxrender.cli import main
-from voxrender.samples import SAMPLE_THRESHOLD, write_slices
+from voxrender.output import write_slices
+from voxrender.samples import SAMPLE_THRESHOLD
 
 
 def run(*args):

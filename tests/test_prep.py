@@ -6,15 +6,27 @@ from voxrender.errors import InputError
 from voxrender.io import Volume
 
 
-def test_crop_is_half_open_in_xyz_order():
+def test_crop_is_half_open_in_array_order():
     values = np.arange(4 * 5 * 6).reshape(4, 5, 6)
-    assert np.array_equal(prep.crop(values, "1:3,2:,:2"), values[:2, 2:, 1:3])
+    region = (slice(None, 2), slice(2, None), slice(1, 3))
+    assert np.array_equal(prep.crop(values, region), values[:2, 2:, 1:3])
+    assert prep.crop(values) is values
 
 
-@pytest.mark.parametrize("spec", ["0:7,:,:", "3:2,:,:", "1:2,:", "a:b,:,:", "5,:,:", "-1:3,:,:"])
-def test_crop_rejects_bad_ranges(spec):
-    with pytest.raises(InputError):
-        prep.parse_crop(spec, (4, 5, 6))
+@pytest.mark.parametrize("region", [(slice(None), slice(None), slice(0, 7)), (slice(None), slice(None), slice(3, 2)),
+                                    (slice(None), slice(1, 2)), (slice(None), slice(None), slice(-1, 3)),
+                                    (slice(None), slice(None), slice(0, 4, 2)), (0, slice(None), slice(None))])
+def test_crop_rejects_bad_ranges(region):
+    with pytest.raises(InputError) as info:
+        prep.crop(np.zeros((4, 5, 6)), region)
+    assert info.value.parameter == "crop"
+
+
+def test_binarize_crops_before_thresholding():
+    values = np.zeros((4, 5, 6))
+    values[0] = 100
+    mask, _ = prep.binarize(Volume(values), 50, crop=(slice(0, 2), slice(None), slice(None)))
+    assert mask.shape == (2, 5, 6) and mask[0].all() and not mask[1].any()
 
 
 def test_resample_keeps_grid_endpoints_and_is_linear():
@@ -56,7 +68,7 @@ def test_otsu_splits_two_populations():
     rng = np.random.default_rng(0)
     values = np.concatenate([rng.normal(0, 10, 5000), rng.normal(1000, 10, 5000)])
     assert 100 < prep.otsu_threshold(values) < 900
-    mask, info = prep.binarize(Volume(values.reshape(10, 10, 100)), "otsu")
+    mask, info = prep.binarize(Volume(values.reshape(10, 10, 100)), prep.otsu_threshold)
     assert mask.sum() == (values >= info["threshold"]).sum() == 5000
 
 
@@ -73,10 +85,11 @@ def test_threshold_that_leaves_nothing_names_the_range():
         prep.binarize(Volume(np.array([[[-5, 7]]])), 100)
 
 
-@pytest.mark.parametrize("text", ["abc", "", "inf", "nan"])
-def test_parse_threshold_rejects(text):
-    with pytest.raises(InputError):
-        prep.parse_threshold(text)
+@pytest.mark.parametrize("threshold", [np.inf, np.nan, lambda values: np.nan])
+def test_threshold_must_be_finite(threshold):
+    with pytest.raises(InputError) as info:
+        prep.binarize(Volume(np.ones((2, 2, 2))), threshold)
+    assert info.value.parameter == "threshold"
 
 
 def test_bad_voxel_size():

@@ -3,8 +3,7 @@ import pytest
 
 from reference import agreement, march
 from voxrender import segments
-from voxrender.errors import InputError
-from voxrender.render import METHODS, render, render_preimage
+from voxrender.render import render
 from voxrender.render.btf import render_btf, render_btf_literal
 from voxrender.view import View
 
@@ -72,24 +71,6 @@ def test_painter_order_hides_what_is_behind():
     mask[3] = True
     depth, stats = render_btf(segments.encode(mask), View(size=(3, 3), scale=1.0))
     assert np.allclose(depth, -1.5) and stats["pixel_writes"] == 18  # both slabs painted, the near one wins
-
-
-def test_preimage_rotation_matches_direct_gamma(ball):
-    encoded = segments.encode(ball)
-    view = View(30, 20, 35, (40, 44), 1.3)
-    direct = render(encoded, view, "btf").depth
-    rotated, stats = render_preimage(render_btf, encoded, view, supersample=4)
-    iou, close = agreement(rotated, direct, tolerance=1.5)
-    assert iou >= 0.95 and close >= 0.98
-    assert stats["supersample"] == 4
-
-
-def test_registry_and_errors(ball):
-    assert "btf" in METHODS
-    with pytest.raises(InputError, match="unknown method"):
-        render(segments.encode(ball), View(), "nope")
-    with pytest.raises(InputError, match="empty"):
-        render(segments.encode(np.zeros((2, 2, 2), bool)), View())
 
 
 def test_vhf_head_against_marcher():

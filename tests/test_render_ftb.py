@@ -96,7 +96,7 @@ def test_gamma_by_preimage_matches_the_contract():
 def test_clip_limits_and_cut_plane_match_a_clipped_mask(ball):
     view = View(30, 20, 0, (40, 44), 1.5)
     for clip in [Clip(x=(3, 8)), Clip(y=(None, 5), z=(4, None)), Clip(cut_depth=-1.0), Clip(x=(2, None), cut_depth=0.5)]:
-        clipped = clip.apply_mask(ball, view.matrix)
+        clipped = clip.apply_mask(ball, view)
         expected = render_btf(segments.encode(clipped), view)[0]
         assert_same(render_ftb(segments.encode(ball), view, clip=clip)[0], expected)
         assert_same(render_btf(segments.encode(ball), view, clip=clip)[0], expected)

@@ -85,8 +85,8 @@ def test_seen_white_leaves_are_those_the_bitmaps_leave_unblocked():
     for view in random_views(rng, 8):
         encoded = segments.encode(random_object(rng))
         arrivals = {}
-        render_octree_ftb_literal(encoded, view, arrivals=arrivals)
-        tree = encoded.octree()
+        tree = octree.build(encoded.to_mask())
+        render_octree_ftb_literal(encoded, view, arrivals=arrivals, tree=tree)
         axes = visible_axes(vpn_from_angles(view.alpha, view.beta, view.gamma))
         seen = seen_from_the_front(tree, axes)[0]
         unblocked_white = {node for node, found in arrivals.items() if tree.color[node] == octree.WHITE

@@ -48,26 +48,6 @@ def test_depth_to_uint16():
     assert out.dtype == np.uint16 and out.tolist() == [[65535, 1], [0, 32768]]
 
 
-def test_rotate_depth_quarter_turn():
-    pre = np.full((6, 6), np.inf)
-    pre[1, 4] = 7.0  # upper right
-    out = shade.rotate_depth(pre, 90, (6, 6), 1.0, 1.0)
-    # Rz(90) takes X' to Y': the upper right corner goes to the lower right.
-    assert np.isfinite(out).sum() == 1 and out[4, 4] == 7.0
-
-
-@pytest.mark.parametrize("text", ["1,2", "a,b,c", "1,2,3,4", "1,nan,2"])
-def test_parse_vector_errors(text):
-    with pytest.raises(InputError):
-        shade.parse_vector(text, "--light")
-
-
-@pytest.mark.parametrize("text", ["300", "1,2", "red", "-1"])
-def test_parse_colour_errors(text):
-    with pytest.raises(InputError):
-        shade.parse_colour(text)
-
-
 def test_unknown_mode_and_zero_light():
     with pytest.raises(InputError):
         shade.shade(np.zeros((2, 2)), "phong")

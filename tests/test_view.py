@@ -3,7 +3,7 @@ import pytest
 
 from reference import rotation
 from voxrender.errors import InputError
-from voxrender.view import (PRESETS, View, angles_from_matrix, angles_from_vpn, fit_scale, pixel_centres,
+from voxrender.view import (PRESETS, View, angles_from_matrix, angles_from_vpn, fit_scale,
                             rotation_matrix, vpn_from_angles)
 
 
@@ -93,9 +93,26 @@ def test_fit_scale_fits_every_rotation():
 
 
 def test_pixel_centres_follow_the_contract():
-    xs, ys = pixel_centres(View(size=(3, 4), scale=2.0))
+    view = View(size=(3, 4), scale=2.0)
+    xs, ys = view.pixel_centres()
     assert xs.tolist() == [-0.75, -0.25, 0.25, 0.75]
     assert ys.tolist() == [-0.5, 0.0, 0.5]
+    columns, rows = view.pixel_index(xs, ys)
+    assert columns.tolist() == [0, 1, 2, 3] and rows.tolist() == [0, 1, 2]
+    outside, _ = view.pixel_centres(np.array([-1, 4]), np.array([0]))
+    assert outside.tolist() == [-1.25, 1.25]
+
+
+def test_object_and_image_space_follow_the_contract():
+    """p' = R (p - c) with c the volume centre, and back."""
+    view = View(30, -20, 75, scale=1.0)
+    shape = (7, 5, 9)
+    points = np.random.default_rng(3).uniform(-2, 10, size=(3, 50))
+    centre = (np.array(shape[::-1]) - 1) / 2
+    expected = rotation_matrix(30, -20, 75) @ (points - centre[:, None])
+    image = np.array(view.to_image(*points, shape))
+    assert np.allclose(image, expected, atol=1e-12)
+    assert np.allclose(np.array(view.to_object(*image, shape)), points, atol=1e-12)
 
 
 def test_view_rejects_bad_values():

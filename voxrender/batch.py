@@ -32,14 +32,14 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__, io, segments, shade
+from . import __version__, output, parse, segments
 from .errors import InputError
-from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
-from .prep import parse_threshold
-from .render import DEFAULT_METHOD, METHODS, render
-from .view import PRESETS, View, angles_from_matrix, rotation_matrix
+from .picture import Outputs, RenderOptions, about, picture, write_outputs
+from .pipeline import Encoded, PrepOptions, ReadOptions, is_segments_file, load_segments
+from .render import method_record
+from .view import PRESETS, angles_from_matrix, rotation_matrix
 
-__all__ = ["ViewSpec", "RenderOptions", "Item", "parse_views", "turntable", "expand_inputs", "read_manifest",
+__all__ = ["ViewSpec", "Patterns", "Item", "parse_views", "turntable", "expand_inputs", "read_manifest",
            "cache_key", "run_batch", "SUMMARY_COLUMNS"]
 
 SUMMARY_COLUMNS = ["input", "name", "view", "alpha", "beta", "gamma", "method", "output", "status", "error",
@@ -68,9 +68,9 @@ def turntable(count, axis="z", base=(90.0, 0.0, 0.0)):
     -90.0
     """
     if count < 1:
-        raise InputError("--turntable needs at least 1 view")
+        raise InputError(f"{count}: a turntable needs at least 1 view", parameter="turntable")
     if axis not in ("x", "y", "z"):
-        raise InputError(f"--axis {axis!r} must be x, y or z")
+        raise InputError(f"{axis!r} must be x, y or z", parameter="axis")
     base_matrix = rotation_matrix(*base)
     views = []
     for k in range(count):
@@ -83,18 +83,18 @@ def turntable(count, axis="z", base=(90.0, 0.0, 0.0)):
 
 
 def parse_views(names=(), angles=(), turntable_count=None, axis="z"):
-    """Views from preset names, ``"a,b,g"`` angle triples and a turntable; the anterior view when none.
+    """Views from preset names, ``(alpha, beta, gamma)`` triples and a turntable; the anterior view when none.
 
-    >>> [(v.label, v.alpha) for v in parse_views(["left"], ["30,10,0"])]
+    >>> [(v.label, v.alpha) for v in parse_views(["left"], [(30, 10, 0)])]
     [('left', 90.0), ('a30_b10_g0', 30.0)]
     """
     views = []
     for name in names:
         if name not in PRESETS:
-            raise InputError(f"unknown view {name!r}; choose one of {', '.join(PRESETS)}")
+            raise InputError(f"unknown view {name!r}; choose one of {', '.join(PRESETS)}", parameter="view")
         views.append(ViewSpec(name, *PRESETS[name]))
-    for text in angles:
-        values = shade.parse_vector(text, "--angles")
+    for values in angles:
+        values = tuple(float(v) for v in values)
         views.append(ViewSpec("a{:g}_b{:g}_g{:g}".format(*values), *values))
     if turntable_count:
         first = views.pop(0) if views else ViewSpec("anterior", *PRESETS["anterior"])
@@ -103,38 +103,46 @@ def parse_views(names=(), angles=(), turntable_count=None, axis="z"):
         views.append(ViewSpec("anterior", *PRESETS["anterior"]))
     labels = [v.label for v in views]
     if len(set(labels)) != len(labels):
-        raise InputError("the same view is asked for twice; give each view once")
+        raise InputError("the same view is asked for twice; give each view once", parameter="view")
     return views
 
 
 @dataclass(frozen=True)
-class RenderOptions:
-    """How every picture of a batch is made."""
+class Patterns:
+    """Where a batch writes each picture: a pattern per output, with ``{name}``, ``{view}``, ``{method}`` and
+    ``{index}``, relative to the batch's folder; ``None`` for an output not wanted."""
 
-    size: tuple = (512, 512)
-    scale: float | None = None
-    shading: str = "gradient"
-    light: tuple = (0.0, 0.0, -1.0)
-    background: tuple = (0, 0, 0)
-    supersample: int = 2
-    fit: str = "volume"
+    picture: str = "{name}/{view}.png"
+    depth: str | None = None
+    depth_png: str | None = None
+    stats_json: str | None = None
+
+    def outputs(self, out_dir, **fields):
+        return Outputs(*(None if pattern is None else Path(out_dir) / pattern.format(**fields)
+                         for pattern in (self.picture, self.depth, self.depth_png, self.stats_json)))
 
 
 @dataclass
 class Item:
-    """One input of a batch: where it is, how to read and threshold it, how to render it, which views."""
+    """One input of a batch: where it is, how to read, threshold and render it, which views, where they go."""
 
     input: str
     name: str
     read: ReadOptions = field(default_factory=ReadOptions)
     prepare: PrepOptions = field(default_factory=PrepOptions)
-    method: str = DEFAULT_METHOD
+    options: RenderOptions = field(default_factory=RenderOptions)
     views: list = field(default_factory=lambda: parse_views())
-    pattern: str = "{name}/{view}.png"
+    patterns: Patterns = field(default_factory=Patterns)
+
+    @property
+    def method(self):
+        return self.options.method
+
+    def outputs(self, out_dir, view, index):
+        return self.patterns.outputs(out_dir, name=self.name, view=view.label, method=self.method, index=index)
 
     def output(self, out_dir, view, index):
-        return Path(out_dir) / self.pattern.format(name=self.name, view=view.label, method=self.method,
-                                                   index=index)
+        return self.outputs(out_dir, view, index).picture
 
 
 def expand_inputs(patterns):
@@ -196,27 +204,33 @@ def read_manifest(path):
     return rows
 
 
-def items_from(inputs, manifest_rows, read, prepare, method, views, pattern):
-    """The batch's items: one per input path, then one per manifest row (its columns override)."""
+def items_from(inputs, manifest_rows, read, prepare, options, views, patterns):
+    """The batch's items: one per input path, then one per manifest row (its columns override).
+
+    A row's ``threshold``, ``views``, ``method`` and ``output`` (the picture's pattern) are text, parsed here.
+    """
     rows = [{"input": p} for p in inputs] + list(manifest_rows)
     if not rows:
-        raise InputError("no inputs: give paths, globs or --manifest")
+        raise InputError("no inputs: give paths, globs or a manifest", parameter="inputs")
     names = unique_names([row["input"] for row in rows])
     items = []
     for row, name in zip(rows, names):
-        item_views = views
-        if str(row.get("views") or "").strip():
-            parts = [p.strip() for p in str(row["views"]).split(";") if p.strip()]
-            item_views = parse_views([p for p in parts if "," not in p], [p for p in parts if "," in p])
-        threshold = row.get("threshold")
-        item_prepare = prepare
-        if threshold not in (None, ""):
-            item_prepare = replace(prepare, threshold=parse_threshold(str(threshold)))
-        item_method = str(row.get("method") or method)
-        if item_method not in METHODS:
-            raise InputError(f"unknown method {item_method!r} for {row['input']}; choose one of {', '.join(METHODS)}")
-        items.append(Item(str(row["input"]), name, read, item_prepare, item_method, item_views,
-                          str(row.get("output") or pattern)))
+        try:
+            item_views = views
+            if str(row.get("views") or "").strip():
+                parts = [p.strip() for p in str(row["views"]).split(";") if p.strip()]
+                item_views = parse_views([p for p in parts if "," not in p],
+                                         [parse.vector(p, "views") for p in parts if "," in p])
+            item_prepare = prepare
+            if str(row.get("threshold") or "").strip():
+                item_prepare = replace(prepare, threshold=parse.threshold(str(row["threshold"])))
+            item_options = options
+            if str(row.get("method") or "").strip():
+                item_options = replace(options, method=str(row["method"]).strip())
+        except InputError as exc:
+            raise InputError(f"{row['input']}: {exc}") from None
+        item_patterns = replace(patterns, picture=str(row.get("output") or patterns.picture))
+        items.append(Item(str(row["input"]), name, read, item_prepare, item_options, item_views, item_patterns))
     return items
 
 
@@ -232,8 +246,13 @@ def cache_key(path, read, prepare):
         with open(file, "rb") as f:
             for block in iter(lambda: f.read(1 << 20), b""):
                 digest.update(block)
-    digest.update(json.dumps([asdict(read), asdict(prepare), __version__], sort_keys=True, default=str).encode())
+    digest.update(json.dumps([asdict(read), asdict(prepare), __version__], sort_keys=True, default=_stable).encode())
     return digest.hexdigest()[:32]
+
+
+def _stable(value):
+    """A text for ``value`` that is the same in every process (a function's name, not its address)."""
+    return getattr(value, "__qualname__", None) or str(value)
 
 
 # ------------------------------------------------------------------ the two kinds of task (run in workers)
@@ -261,34 +280,30 @@ def encode_task(item, cache_dir):
 
 
 @functools.lru_cache(maxsize=2)
-def _segments(path, stamp):
-    """The segments at ``path`` (``stamp``: its size and time, so a remade file is read again), kept between the
-    tasks of a worker: the octree methods build the octree once per object, not once per picture."""
-    return segments.load(path)
+def _encoded(path, stamp):
+    """The object at ``path`` (``stamp``: its size and time, so a remade file is read again), kept between the
+    tasks of a worker with its octree: the octree methods build the octree once per object, not once per picture."""
+    return Encoded(segments.load(path))
 
 
-def render_task(item, view, index, segments_path, out_dir, options, encode_seconds):
-    """Phase 2: render one view of one input and write its PNG; returns its summary row."""
-    output = item.output(out_dir, view, index)
+def render_task(item, view, index, segments_path, out_dir, encode_seconds):
+    """Phase 2: render one view of one input and write its outputs; returns its summary row."""
+    outputs = item.outputs(out_dir, view, index)
     row = {"input": item.input, "name": item.name, "view": view.label, "alpha": view.alpha, "beta": view.beta,
-           "gamma": view.gamma, "method": item.method, "output": str(output)}
-    started = time.perf_counter()
+           "gamma": view.gamma, "method": item.method, "output": str(outputs.picture)}
     try:
         status = Path(segments_path).stat()
-        encoded = _segments(str(segments_path), (status.st_size, status.st_mtime_ns))
-        picture = View(view.alpha, view.beta, view.gamma, options.size, options.scale)
-        image = render(encoded, picture, item.method, supersample=options.supersample, fit=options.fit)
-        shaded_at = time.perf_counter()
-        rgb = shade.shade(image.depth, options.shading, image.view.scale, options.light,
-                          background=options.background)
-        written_at = time.perf_counter()
-        output.parent.mkdir(parents=True, exist_ok=True)
-        io.write_png(output, rgb)
-        done = time.perf_counter()
-        row.update(status="ok", error="", load_s=encode_seconds.get("load", 0.0),
-                   prepare_s=encode_seconds.get("prepare", 0.0), render_s=image.seconds,
-                   shade_s=written_at - shaded_at, write_s=done - written_at, total_s=done - started,
-                   stats=json.dumps(image.stats, default=float))
+        encoded = _encoded(str(segments_path), (status.st_size, status.st_mtime_ns))
+        tree = encoded.octree() if method_record(item.method).octree else None
+        result = picture(encoded.segments, item.options.view(view.alpha, view.beta, view.gamma), item.options,
+                         tree=tree)
+        result.seconds = {"load": encode_seconds.get("load", 0.0), "prepare": encode_seconds.get("prepare", 0.0),
+                          **result.seconds}
+        for path in outputs.paths():
+            path.parent.mkdir(parents=True, exist_ok=True)
+        seconds = write_outputs(result, outputs, about(encoded.segments))
+        row.update(status="ok", error="", **{f"{stage}_s": value for stage, value in seconds.items()},
+                   stats=json.dumps(result.image.stats, default=float))
     except InputError as exc:
         row.update(status="failed", error=str(exc))
     except Exception as exc:  # reported in the summary; the batch goes on
@@ -348,7 +363,8 @@ class _Dask:
         try:
             from distributed import Client, LocalCluster
         except ImportError:
-            raise InputError("--scheduler needs Dask: pip install 'voxrender[distributed]'") from None
+            raise InputError("a Dask scheduler needs Dask: pip install 'voxrender[distributed]'",
+                             parameter="scheduler") from None
         if scheduler == "local":
             self.cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,
                                         dashboard_address=None)
@@ -358,7 +374,7 @@ class _Dask:
             try:
                 self.client = Client(scheduler, timeout="10s")
             except OSError as exc:
-                raise InputError(f"cannot reach the Dask scheduler at {scheduler}: {exc}") from None
+                raise InputError(f"cannot reach the Dask scheduler at {scheduler}: {exc}", parameter="scheduler") from None
 
     def submit(self, fn, *args):
         return self.client.submit(fn, *args, pure=False)
@@ -382,8 +398,7 @@ def executor(jobs, scheduler=None):
 
 # ------------------------------------------------------------------ the batch
 
-def run_batch(items, out_dir, options=None, jobs=None, scheduler=None, cache_dir=None, animations=(), fps=12,
-              progress=None):
+def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animations=(), fps=12, progress=None):
     """Run a batch; return the summary rows (also written to ``out_dir/summary.csv``).
 
     Parameters
@@ -391,7 +406,6 @@ def run_batch(items, out_dir, options=None, jobs=None, scheduler=None, cache_dir
     items : list of Item
     out_dir : path
         Pictures go here (named by each item's pattern), with ``summary.csv``.
-    options : RenderOptions
     jobs : int
         Worker processes (default: the machine's cores); with ``scheduler``, local Dask workers.
     scheduler : str, optional
@@ -403,7 +417,6 @@ def run_batch(items, out_dir, options=None, jobs=None, scheduler=None, cache_dir
     progress : callable, optional
         ``progress(length)`` returning an object with ``update(n)`` and ``close()`` (a progress bar).
     """
-    options = options or RenderOptions()
     out_dir = Path(out_dir)
     _check_patterns(items, out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -415,7 +428,7 @@ def run_batch(items, out_dir, options=None, jobs=None, scheduler=None, cache_dir
     for item in items:
         for index, view in enumerate(item.views):
             output = item.output(out_dir, view, index)
-            if is_done(output, options.size):
+            if is_done(output, item.options.size):
                 rows[(item.input, view.label)] = {
                     "input": item.input, "name": item.name, "view": view.label, "alpha": view.alpha,
                     "beta": view.beta, "gamma": view.gamma, "method": item.method, "output": str(output),
@@ -444,7 +457,7 @@ def run_batch(items, out_dir, options=None, jobs=None, scheduler=None, cache_dir
                 continue
             for index, view in views:
                 renders.append(pool.submit(render_task, item, view, index, report["segments"], str(out_dir),
-                                           options, report["seconds"]))
+                                           report["seconds"]))
         for future in pool.as_completed(renders):
             row = future.result()
             rows[(row["input"], row["view"])] = row
@@ -457,28 +470,36 @@ def run_batch(items, out_dir, options=None, jobs=None, scheduler=None, cache_dir
     ordered = [rows[(item.input, view.label)] for item in items for view in item.views]
     for kind in animations:
         for item in items:
-            _animate(item, out_dir, options, kind, fps, ordered)
+            _animate(item, out_dir, kind, fps, ordered)
     _write_summary(out_dir / "summary.csv", ordered)
     return ordered
 
 
 def _check_patterns(items, out_dir):
-    outputs = {}
+    """Every output of every picture gets a distinct path with the right ending, before anything is made."""
+    seen = {}
+    endings = {"picture": ".png", "depth": ".npy", "depth_png": ".png", "stats_json": ".json"}
     for item in items:
         for index, view in enumerate(item.views):
             try:
-                path = item.output(out_dir, view, index)
+                outputs = item.outputs(out_dir, view, index)
             except (KeyError, IndexError, ValueError) as exc:
-                raise InputError(f"output pattern {item.pattern!r} is not valid: use {{name}}, {{view}}, "
-                                 f"{{method}}, {{index}} ({exc})") from None
-            if path.suffix.lower() != ".png":
-                raise InputError(f"output pattern {item.pattern!r} must end in .png")
-            if path in outputs:
-                raise InputError(f"output pattern {item.pattern!r} gives {path} twice; add {{name}} or {{view}}")
-            outputs[path] = True
+                raise InputError(f"an output pattern of {item.input} is not valid: use {{name}}, {{view}}, "
+                                 f"{{method}}, {{index}} ({exc})", parameter="pattern") from None
+            for kind, ending in endings.items():
+                path = getattr(outputs, kind)
+                pattern = getattr(item.patterns, kind)
+                if path is None:
+                    continue
+                if path.suffix.lower() != ending:
+                    raise InputError(f"output pattern {pattern!r} must end in {ending}", parameter=kind)
+                if path in seen:
+                    raise InputError(f"output pattern {pattern!r} gives {path} twice; add {{name}} or {{view}}",
+                                     parameter=kind)
+                seen[path] = True
 
 
-def _animate(item, out_dir, options, kind, fps, rows):
+def _animate(item, out_dir, kind, fps, rows):
     """Every view of ``item`` as one animation (only when all its pictures exist)."""
     import imageio.v3 as iio
 
@@ -488,7 +509,7 @@ def _animate(item, out_dir, options, kind, fps, rows):
     target = Path(out_dir) / f"{item.name}.{kind}"
     pictures = np.stack([iio.imread(f) for f in frames])
     try:
-        with io.atomic_output(target) as tmp:
+        with output.atomic_output(target) as tmp:
             if kind == "gif":
                 iio.imwrite(tmp, pictures, extension=".gif", duration=1000 / fps, loop=0)
             else:
@@ -498,7 +519,7 @@ def _animate(item, out_dir, options, kind, fps, rows):
 
 
 def _write_summary(path, rows):
-    with io.atomic_output(path) as tmp, open(tmp, "w", newline="") as f:
+    with output.atomic_output(path) as tmp, open(tmp, "w", newline="") as f:
         writer = csv.DictWriter(f, SUMMARY_COLUMNS, extrasaction="ignore")
         writer.writeheader()
         for row in rows:

@@ -16,12 +16,13 @@ from pathlib import Path
 import click
 import numpy as np
 
-from . import __version__, batch, io, lines, octree, prep, samples, segments, shade
+from . import __version__, batch, io, lines, octree, output, parse, prep, samples, segments
 from .errors import InputError
+from .picture import SHADINGS, Outputs, RenderOptions, about, picture, write_outputs
 from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
-from .render import DEFAULT_METHOD, METHODS, Clip, render
-from .render.clip import parse_range
-from .view import PRESETS, View, angles_from_vpn
+from .render import DEFAULT_METHOD, METHODS, Clip
+from .render.raycast import CONNECTIVITIES
+from .view import PRESETS, angles_from_vpn
 
 
 def progress(iterable, length=None, label=None):
@@ -40,19 +41,21 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
     click.echo(f"warning: {message}", err=True)
 
 
-# ---------------------------------------------------------------- option parsers
+# ---------------------------------------------------------------- flags and their parsers
 
-def _parse_size(text):
-    try:
-        parts = [int(p) for p in str(text).lower().split("x")]
-    except ValueError:
-        parts = []
-    if len(parts) == 1:
-        parts = parts * 2
-    if len(parts) != 2 or min(parts) < 1 or max(parts) > 32768:
-        raise InputError(f"--size {text!r} must be N or WxH in pixels, e.g. 512 or 640x480")
-    width, height = parts
-    return height, width
+# Library parameters whose flag is not "--" + the name with dashes.
+FLAGS = {"clip_x": "--clip-x", "clip_y": "--clip-y", "clip_z": "--clip-z", "picture": "--pattern",
+         "depth": "--depth-out", "inputs": "INPUT", "segments": "INPUT", "views": "the manifest's views",
+         "method_options": "--connectivity"}
+
+
+def flag(parameter):
+    """The command-line flag of a library parameter.
+
+    >>> flag("cut_depth"), flag("depth")
+    ('--cut-depth', '--depth-out')
+    """
+    return FLAGS.get(parameter, "--" + parameter.replace("_", "-"))
 
 
 def _view_from(options):
@@ -61,36 +64,40 @@ def _view_from(options):
                                        ("--alpha/--beta/--gamma", angles_given)) if given]
     if len(chosen) > 1:
         raise InputError(f"give one of {' and '.join(chosen)}, not both")
-    size = _parse_size(options["size"])
     if options["view"]:
-        alpha, beta, gamma = PRESETS[options["view"]]
-    elif options["vpn"]:
-        alpha, beta, gamma = angles_from_vpn(shade.parse_vector(options["vpn"], "--vpn"))
-    else:
-        alpha, beta, gamma = (options[k] or 0.0 for k in ("alpha", "beta", "gamma"))
-    return View(alpha, beta, gamma, size, options["scale"])
+        return PRESETS[options["view"]]
+    if options["vpn"]:
+        return angles_from_vpn(parse.vector(options["vpn"], "vpn"))
+    return tuple(options[k] or 0.0 for k in ("alpha", "beta", "gamma"))
 
 
 def _read_options(options):
-    spacing = shade.parse_vector(options["spacing"], "--spacing") if options["spacing"] else None
-    if spacing is not None:
-        spacing = io.check_spacing(spacing, "--spacing")
-    return ReadOptions(options["format"], options["raw"], spacing, options["series"])
+    spacing = io.check_spacing(parse.vector(options["spacing"], "spacing")) if options["spacing"] else None
+    raw = parse.raw_layout(options["raw"]) if options["raw"] else None
+    return ReadOptions(options["format"], raw, spacing, options["series"])
 
 
 def _prep_options(options):
-    if options["min_object"] < 0:
-        raise InputError("--min-object must be 0 or more voxels")
-    threshold = "otsu" if options["threshold"] is None else prep.parse_threshold(options["threshold"])
-    return PrepOptions(threshold, options["crop"], options["voxel"],
-                       options["resample"], options["min_object"])
+    threshold = parse.threshold("otsu" if options["threshold"] is None else options["threshold"])
+    crop = parse.crop(options["crop"]) if options["crop"] else None
+    return PrepOptions(threshold, crop, options["voxel"], options["resample"], options["min_object"])
+
+
+def _render_options(options):
+    """The :class:`RenderOptions` of the flags that both ``render`` and ``batch`` declare."""
+    clip = Clip(*(parse.clip_range(options[f"clip_{axis}"], f"clip_{axis}") if options[f"clip_{axis}"] else None
+                  for axis in "xyz"), options["cut_depth"])
+    method_options = {"connectivity": options["connectivity"]} if options["connectivity"] else {}
+    return RenderOptions(options["method"], method_options, clip if clip.active else None, options["fit"],
+                         parse.size(options["size"]), options["scale"], options["supersample"], options["shading"],
+                         parse.vector(options["light"], "light"), background=parse.colour(options["background"]))
 
 
 def _check_vxs_options(path, options):
     """A .vxs file is already thresholded: refuse options that would silently do nothing."""
     if not is_segments_file(path):
         return
-    given = [f"--{name.replace('_', '-')}" for name in ("threshold", "crop", "voxel", "raw", "spacing", "series")
+    given = [flag(name) for name in ("threshold", "crop", "voxel", "raw", "spacing", "series")
              if options.get(name) is not None]
     if given:
         raise InputError(f"{path} is already encoded, so {', '.join(given)} cannot apply; "
@@ -99,22 +106,25 @@ def _check_vxs_options(path, options):
 
 # ---------------------------------------------------------------- shared options
 
+def _decorate(command, decorators):
+    for decorator in reversed(decorators):
+        command = decorator(command)
+    return command
+
+
 def _input_options(command):
-    decorators = [
+    return _decorate(command, [
         click.argument("input_path", metavar="INPUT", type=click.Path(path_type=Path)),
         click.option("--format", "format", default="auto", show_default=True,
                      type=click.Choice(io.FORMATS), help="Input format (auto-detected)."),
         click.option("--raw", metavar="WxH:DTYPE:ENDIAN", help="Headerless slices, e.g. 64x64:uint16:little."),
         click.option("--spacing", metavar="X,Y,Z", help="Voxel spacing in mm; overrides the files."),
         click.option("--series", metavar="UID", help="DICOM SeriesInstanceUID, when a folder holds several."),
-    ]
-    for decorator in reversed(decorators):
-        command = decorator(command)
-    return command
+    ])
 
 
 def _prep_options_decorator(command):
-    decorators = [
+    return _decorate(command, [
         click.option("--threshold", metavar="VALUE|otsu",
                      help="Object is value >= VALUE (stored units, HU for CT); default: otsu."),
         click.option("--crop", metavar="X0:X1,Y0:Y1,Z0:Z1", help="Subregion in input voxel indices."),
@@ -122,10 +132,39 @@ def _prep_options_decorator(command):
                      help="Resample to cubic voxels from the spacing."),
         click.option("--voxel", type=float, metavar="MM", help="Cubic voxel size (default: smallest spacing)."),
         click.option("--min-object", type=int, default=0, metavar="N", help="Drop connected specks under N voxels."),
-    ]
-    for decorator in reversed(decorators):
-        command = decorator(command)
-    return command
+    ])
+
+
+def _render_options_decorator(command):
+    """The options of the picture step, declared once for ``render`` and ``batch``."""
+    return _decorate(command, [
+        click.option("--method", default=DEFAULT_METHOD, show_default=True, type=click.Choice(sorted(METHODS)),
+                     help="Rendering algorithm."),
+        click.option("--connectivity", type=click.Choice(CONNECTIVITIES),
+                     help="Discrete rays of --method raycast: 6, 26, or 26 switching to 6 near the object "
+                          "(default adaptive)."),
+        click.option("--size", default="512", show_default=True, metavar="N|WxH", help="Image size in pixels."),
+        click.option("--scale", type=float, help="Pixels per voxel (default: fit the volume at any rotation)."),
+        click.option("--fit", type=click.Choice(["volume", "object"]), default="volume", show_default=True,
+                     help="Without --scale: fit the whole volume, or only the object, at any rotation."),
+        click.option("--clip-x", metavar="A:B", help="Keep voxels with A <= x < B (object space, after resampling)."),
+        click.option("--clip-y", metavar="A:B", help="Keep voxels with A <= y < B."),
+        click.option("--clip-z", metavar="A:B", help="Keep voxels with A <= z < B."),
+        click.option("--cut-depth", type=float, metavar="D",
+                     help="Cutaway: ignore voxels nearer than Z' = D (voxels; 0 is the volume centre)."),
+        click.option("--supersample", default=2, show_default=True, type=click.IntRange(1, 8),
+                     help="Pre-image supersampling for methods that apply gamma by rotating the picture."),
+        click.option("--shading", default="gradient", show_default=True, type=click.Choice(list(SHADINGS))),
+        click.option("--light", default="0,0,-1", show_default=True, metavar="X,Y,Z",
+                     help="Direction toward the light in image space (X right, Y down, Z away)."),
+        click.option("--background", default="black", show_default=True, metavar="GREY|R,G,B"),
+        click.option("--depth-out", type=click.Path(path_type=Path), metavar="FILE.npy",
+                     help="Save the depth image (float32, +inf background); in a batch, a pattern like --pattern."),
+        click.option("--depth-png", type=click.Path(path_type=Path), metavar="FILE.png",
+                     help="Save depth as a 16-bit PNG (near bright, background 0); in a batch, a pattern."),
+        click.option("--stats-json", type=click.Path(path_type=Path), metavar="FILE",
+                     help="Save timings and the renderer's statistics as JSON; in a batch, a pattern."),
+    ])
 
 
 # ---------------------------------------------------------------- commands
@@ -145,7 +184,8 @@ class _Group(click.Group):
             click.echo(f"error: {exc.format_message()}{hint}", err=True)
             sys.exit(2)
         except InputError as exc:
-            click.echo(f"error: {exc}", err=True)
+            where = f"{flag(exc.parameter)}: " if exc.parameter else ""
+            click.echo(f"error: {where}{exc.message}", err=True)
             sys.exit(2)
         except KeyboardInterrupt:
             click.echo("interrupted", err=True)
@@ -170,107 +210,57 @@ def main():
 @main.command("render")
 @_input_options
 @_prep_options_decorator
-@click.option("-o", "--output", required=True, type=click.Path(path_type=Path), help="PNG to write.")
-@click.option("--method", default=DEFAULT_METHOD, show_default=True, type=click.Choice(sorted(METHODS)),
-              help="Rendering algorithm.")
+@click.option("-o", "--output", "output_path", required=True, type=click.Path(path_type=Path), help="PNG to write.")
 @click.option("--view", type=click.Choice(list(PRESETS)), help="A named view (DICOM axial stacks).")
 @click.option("--alpha", type=float, help="Rotation about X1 in degrees.")
 @click.option("--beta", type=float, help="Rotation about Y1 in degrees.")
 @click.option("--gamma", type=float, help="Rotation about Z1 (the view axis) in degrees.")
 @click.option("--vpn", metavar="I,J,K", help="View plane normal (object x,y,z toward the viewer).")
-@click.option("--size", default="512", show_default=True, metavar="N|WxH", help="Image size in pixels.")
-@click.option("--scale", type=float, help="Pixels per voxel (default: fit the volume at any rotation).")
-@click.option("--fit", type=click.Choice(["volume", "object"]), default="volume", show_default=True,
-              help="Without --scale: fit the whole volume, or only the object, at any rotation.")
-@click.option("--connectivity", type=click.Choice(["6", "26", "adaptive"]), default="adaptive", show_default=True,
-              help="Discrete rays of --method raycast: 6, 26, or 26 switching to 6 near the object.")
-@click.option("--clip-x", metavar="A:B", help="Keep voxels with A <= x < B (object space, after resampling).")
-@click.option("--clip-y", metavar="A:B", help="Keep voxels with A <= y < B.")
-@click.option("--clip-z", metavar="A:B", help="Keep voxels with A <= z < B.")
-@click.option("--cut-depth", type=float, metavar="D",
-              help="Cutaway: ignore voxels nearer than Z' = D (voxels; 0 is the volume centre).")
-@click.option("--shading", default="gradient", show_default=True, type=click.Choice(["gradient", "depth"]))
-@click.option("--light", default="0,0,-1", show_default=True, metavar="X,Y,Z",
-              help="Direction toward the light in image space (X right, Y down, Z away).")
-@click.option("--background", default="black", show_default=True, metavar="GREY|R,G,B")
-@click.option("--supersample", default=2, show_default=True, type=click.IntRange(1, 8),
-              help="Pre-image supersampling for methods that apply gamma by rotating the picture.")
-@click.option("--depth-out", type=click.Path(path_type=Path), metavar="FILE.npy",
-              help="Save the depth image (float32, +inf background).")
-@click.option("--depth-png", type=click.Path(path_type=Path), metavar="FILE.png",
-              help="Save depth as a 16-bit PNG (near bright, background 0).")
-@click.option("--stats-json", type=click.Path(path_type=Path), metavar="FILE",
-              help="Save timings and the renderer's statistics as JSON.")
-def render_command(input_path, output, method, fit, connectivity, clip_x, clip_y, clip_z, cut_depth, shading, light, background,
-                   supersample, depth_out, depth_png, stats_json, **options):
+@_render_options_decorator
+def render_command(input_path, output_path, depth_out, depth_png, stats_json, **options):
     """Render INPUT (a slice folder, volume file or .vxs) to a shaded PNG."""
-    started = time.perf_counter()
     _check_vxs_options(input_path, options)
-    view = _view_from(options)
-    clip = Clip(*(parse_range(text, f"--clip-{axis}") if text else None
-                  for axis, text in zip("xyz", (clip_x, clip_y, clip_z))), cut_depth)
-    light = shade.parse_vector(light, "--light")
-    background = shade.parse_colour(background)
-    for path in (output, depth_out, depth_png, stats_json):
-        if path is not None:
-            io.check_writable(path)
+    angles = _view_from(options)
+    render_options = _render_options(options)
+    outputs = Outputs(output_path, depth_out, depth_png, stats_json)
+    for path in outputs.paths():
+        output.check_writable(path)
     loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
-    options = {"connectivity": connectivity} if method == "raycast" else {}
-    image = render(loaded.segments, view, method, progress, supersample, clip if clip.active else None, fit,
-                   **options)
-    shaded_at = time.perf_counter()
-    rgb = shade.shade(image.depth, shading, image.view.scale, light, background=background)
-    written_at = time.perf_counter()
-    io.write_png(output, rgb)
-    if depth_out is not None:
-        with io.atomic_output(depth_out) as tmp, open(tmp, "wb") as f:
-            np.save(f, image.depth)
-    if depth_png is not None:
-        io.write_png(depth_png, shade.depth_to_uint16(image.depth))
-    done = time.perf_counter()
-    seconds = dict(loaded.seconds, render=image.seconds, shade=written_at - shaded_at, write=done - written_at,
-                   total=done - started)
-    if stats_json is not None:
-        report = {"method": method, "seconds": seconds, "stats": image.stats,
-                  "view": {"alpha": image.view.alpha, "beta": image.view.beta, "gamma": image.view.gamma,
-                           "scale": image.view.scale, "size": list(image.view.size)},
-                  "object": {"shape": list(loaded.segments.shape), "voxels": loaded.segments.voxel_count,
-                             "segments": loaded.segments.segment_count, **loaded.segments.meta},
-                  "covered_pixels": int(image.coverage.sum())}
-        with io.atomic_output(stats_json) as tmp:
-            tmp.write_text(json.dumps(report, indent=2, default=float))
-    if not image.coverage.any():
+    result = picture(loaded.segments, render_options.view(*angles), render_options, progress)
+    result.seconds = {**loaded.seconds, **result.seconds}
+    write_outputs(result, outputs, about(loaded.segments))
+    if not result.image.coverage.any():
         click.echo("warning: the object falls outside the picture; try a smaller --scale", err=True)
 
 
 @main.command("encode")
 @_input_options
 @_prep_options_decorator
-@click.option("-o", "--output", required=True, type=click.Path(path_type=Path),
+@click.option("-o", "--output", "output_path", required=True, type=click.Path(path_type=Path),
               help=".vxs file to write (.vxo with --octree).")
 @click.option("--octree", "as_octree", is_flag=True, help="Write the region and linear octrees (.vxo) instead.")
-def encode_command(input_path, output, as_octree, **options):
+def encode_command(input_path, output_path, as_octree, **options):
     """Threshold INPUT and save its run-length segments (.vxs) or its octrees (.vxo)."""
     suffix = ".vxo" if as_octree else ".vxs"
-    if output.suffix.lower() != suffix:
-        raise InputError(f"the output {output} must end in {suffix}")
+    if output_path.suffix.lower() != suffix:
+        raise InputError(f"the output {output_path} must end in {suffix}")
     if is_segments_file(input_path) and not as_octree:
         raise InputError(f"{input_path} is already encoded")
     _check_vxs_options(input_path, options)
-    io.check_writable(output)
+    output.check_writable(output_path)
     loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
     s = loaded.segments
     nz, ny, nx = s.shape
     if as_octree:
         tree = octree.build(s.to_mask())
-        octree.save(tree, output)
+        octree.save(tree, output_path)
         counts = tree.counts()
-        click.echo(f"{output}: {nx}x{ny}x{nz} voxels in a {1 << tree.n}^3 octree: {counts['black']} black, "
+        click.echo(f"{output_path}: {nx}x{ny}x{nz} voxels in a {1 << tree.n}^3 octree: {counts['black']} black, "
                    f"{counts['white']} white, {counts['grey']} grey nodes; "
                    f"{len(octree.linear_octree(tree))} linear-octree codes")
         return
-    segments.save(s, output)
-    click.echo(f"{output}: {nx}x{ny}x{nz} voxels, {s.voxel_count} in the object, {s.segment_count} segments, "
+    segments.save(s, output_path)
+    click.echo(f"{output_path}: {nx}x{ny}x{nz} voxels, {s.voxel_count} in the object, {s.segment_count} segments, "
                f"threshold {s.meta['threshold']:g}")
 
 
@@ -310,8 +300,8 @@ def _describe(path, volume, prepare):
     for key in ("modality", "series", "description", "sorted_by"):
         if volume.meta.get(key):
             summary[key] = volume.meta[key]
-    threshold = suggested if prepare.threshold == "otsu" else prepare.threshold
-    mask, info = prep.binarize(volume, threshold, crop_spec=prepare.crop, voxel=prepare.voxel,
+    threshold = suggested if callable(prepare.threshold) else prepare.threshold
+    mask, info = prep.binarize(volume, threshold, crop=prepare.crop, voxel=prepare.voxel,
                                resample=prepare.resample, min_object=prepare.min_object)
     encoded = segments.encode(mask)
     summary.update({"threshold": threshold, "object_grid_xyz": list(mask.shape[::-1]),
@@ -348,7 +338,6 @@ class _BatchBar:
 @click.option("--spacing", metavar="X,Y,Z")
 @click.option("--series", metavar="UID")
 @_prep_options_decorator
-@click.option("--method", default=DEFAULT_METHOD, show_default=True, type=click.Choice(sorted(METHODS)))
 @click.option("--view", "views", multiple=True, type=click.Choice(list(PRESETS)), help="A named view (repeatable).")
 @click.option("--angles", multiple=True, metavar="A,B,G", help="alpha,beta,gamma in degrees (repeatable).")
 @click.option("--turntable", type=click.IntRange(1, 3600), metavar="N",
@@ -356,39 +345,31 @@ class _BatchBar:
 @click.option("--axis", default="z", show_default=True, type=click.Choice(["x", "y", "z"]))
 @click.option("--pattern", default="{name}/{view}.png", show_default=True,
               help="Output names under --out: {name}, {view}, {method}, {index}.")
-@click.option("--size", default="512", show_default=True, metavar="N|WxH")
-@click.option("--scale", type=float)
-@click.option("--fit", type=click.Choice(["volume", "object"]), default="volume", show_default=True,
-              help="Without --scale: fit the whole volume, or only the object, at any rotation.")
-@click.option("--shading", default="gradient", show_default=True, type=click.Choice(["gradient", "depth"]))
-@click.option("--background", default="black", show_default=True, metavar="GREY|R,G,B")
+@_render_options_decorator
 @click.option("--gif", is_flag=True, help="Also write each input's views as an animated GIF.")
 @click.option("--mp4", is_flag=True, help="Also write each input's views as an MP4 (extra 'video').")
 @click.option("--fps", default=12, show_default=True, type=click.IntRange(1, 120))
 @click.option("--jobs", type=click.IntRange(1, 1024), help="Worker processes (default: the machine's cores).")
 @click.option("--scheduler", metavar="ADDRESS|local", help="Run on a Dask cluster ('local' starts one here).")
 @click.option("--cache", type=click.Path(path_type=Path), help="Cache of encoded objects (default OUT/.voxrender-cache).")
-def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pattern, size, scale, fit, shading,
-                  background, gif, mp4, fps, jobs, scheduler, cache, method, **options):
+def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pattern, depth_out, depth_png,
+                  stats_json, gif, mp4, fps, jobs, scheduler, cache, **options):
     """Render many inputs from many views: pictures, an optional animation, and summary.csv.
 
     Each input is encoded once (and cached); a failing input is reported and the others go on;
-    a re-run skips the pictures already made.
+    a re-run skips the pictures already made.  The render options are those of 'voxrender render';
+    --depth-out, --depth-png and --stats-json are patterns like --pattern.
     """
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"--out {out_dir} is a file; give a folder")
-    if scale is not None and scale <= 0:
-        raise InputError(f"--scale {scale} must be a positive number of pixels per voxel")
-    read = _read_options(options)
-    prepare = _prep_options(options)
-    rows = batch.read_manifest(manifest) if manifest else []
-    items = batch.items_from(batch.expand_inputs(inputs), rows, read, prepare, method,
-                             batch.parse_views(views, angles, turntable, axis), pattern)
-    render_options = batch.RenderOptions(_parse_size(size), scale, shading, background=shade.parse_colour(background),
-                                         fit=fit)
+    patterns = batch.Patterns(pattern, *(None if p is None else str(p) for p in (depth_out, depth_png, stats_json)))
+    items = batch.items_from(batch.expand_inputs(inputs), batch.read_manifest(manifest) if manifest else [],
+                             _read_options(options), _prep_options(options), _render_options(options),
+                             batch.parse_views(views, [parse.vector(a, "angles") for a in angles], turntable, axis),
+                             patterns)
     animations = [kind for kind, wanted in (("gif", gif), ("mp4", mp4)) if wanted]
     started = time.perf_counter()
-    summary = batch.run_batch(items, out_dir, render_options, jobs, scheduler, cache, animations, fps, _BatchBar)
+    summary = batch.run_batch(items, out_dir, jobs, scheduler, cache, animations, fps, _BatchBar)
     made = sum(r["status"] == "ok" for r in summary)
     earlier = sum(r["status"] == "done earlier" for r in summary)
     failed = {r["input"]: r["error"] for r in summary if r["status"] == "failed"}
@@ -442,19 +423,33 @@ def samples_command(folder, names):
     if folder.exists() and not folder.is_dir():
         raise InputError(f"{folder} is a file; give a folder for the samples")
     folder.mkdir(parents=True, exist_ok=True)
-    for path in samples.write_samples(folder, names or None):
+    for name in names or samples.SAMPLES:
+        path = output.write_slices(samples.SAMPLES[name](), folder / name)
         click.echo(f"{path}: {len(list(path.glob('*.png')))} slices")
 
 
+# The demo: the noisy shell seen from the front, a little from the left and above, so both eye holes show.
+DEMO_SAMPLE = "shell"
+DEMO_VIEW = (100.0, 20.0, 0.0)
+DEMO_OPTIONS = RenderOptions(size=(256, 256))
+
+
 @main.command("demo")
-@click.option("-o", "--output", default="demo.png", show_default=True, type=click.Path(path_type=Path))
+@click.option("-o", "--output", "output_path", default="demo.png", show_default=True,
+              type=click.Path(path_type=Path))
 @click.option("--samples-folder", default="samples", show_default=True, type=click.Path(path_type=Path))
-def demo_command(output, samples_folder):
-    """Write the built-in samples and render the skull-like shell to OUTPUT."""
-    io.check_writable(output)
-    rgb, image = samples.demo_picture(samples_folder, progress)
-    io.write_png(output, rgb)
-    click.echo(f"{output}: {samples_folder / 'shell'} rendered with {image.method} at alpha={image.view.alpha:g} "
+def demo_command(output_path, samples_folder):
+    """Write the built-in samples (if absent) and render the skull-like shell to OUTPUT."""
+    output.check_writable(output_path)
+    folder = samples_folder / DEMO_SAMPLE
+    if not folder.is_dir():
+        for name, make in samples.SAMPLES.items():
+            output.write_slices(make(), samples_folder / name)
+    loaded = load_segments(folder, prepare=PrepOptions(threshold=samples.SAMPLE_THRESHOLD))
+    result = picture(loaded.segments, DEMO_OPTIONS.view(*DEMO_VIEW), DEMO_OPTIONS, progress)
+    write_outputs(result, Outputs(output_path))
+    image = result.image
+    click.echo(f"{output_path}: {folder} rendered with {image.method} at alpha={image.view.alpha:g} "
                f"beta={image.view.beta:g} in {image.seconds:.2f} s")
 
 

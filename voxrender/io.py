@@ -1,4 +1,4 @@
-"""Reading slice stacks into a :class:`Volume`, and writing files atomically.
+"""Reading slice stacks into a :class:`Volume`.
 
 Supported inputs (detected from the path, or named with ``format=``):
 
@@ -8,36 +8,37 @@ format     what
 images     a folder of 2-D images (PNG, TIFF, BMP, JPEG), in natural order of names
 dicom      a folder holding a DICOM series, ordered by ImagePositionPatient
 metaimage  a MetaImage ``.mhd`` (header + raw file) or ``.mha`` (one file), raw or zlib
-raw        headerless slices: a folder of files or one file, with ``raw="WxH:dtype:endian"``
+raw        headerless slices: a folder of files or one file, with ``raw=RawLayout(...)``
 npy        a 3-D NumPy ``.npy`` array ``[z, y, x]``
 tiff       a multi-page TIFF, one page a slice
 ========== ==========================================================================
 
 Readers stream: the volume array is allocated once and filled slice by slice.
+
+Adding a reader is one function ``read(path, progress, **options) -> Volume`` and one
+:class:`Reader` record in ``READERS`` (see ``docs/design.md``).
 """
 
 from __future__ import annotations
 
-import contextlib
-import os
 import re
-import tempfile
 import warnings
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
 from .errors import InputError
 
-__all__ = ["Volume", "read_volume", "parse_raw_spec", "natural_key", "atomic_output", "check_writable", "check_spacing", "write_png"]
+__all__ = ["Volume", "RawLayout", "Reader", "READERS", "FORMATS", "read_volume", "detect_format", "natural_key",
+           "check_spacing"]
 
 IMAGE_EXTENSIONS = {".png", ".tif", ".tiff", ".bmp", ".jpg", ".jpeg"}
 DICOM_EXTENSIONS = {".dcm", ".dicom", ".ima"}
 # Files that sit beside raw slices but are not slices (headers and notes).
 NOT_SLICE_EXTENSIONS = {".nhdr", ".nrrd", ".mhd", ".hdr", ".txt", ".md", ".json", ".csv", ".xml", ".ini", ".py"}
-FORMATS = ("auto", "images", "dicom", "metaimage", "raw", "npy", "tiff")
 
 
 @dataclass
@@ -74,30 +75,27 @@ def _identity_progress(iterable, length=None, label=None):
     return iterable
 
 
-def parse_raw_spec(spec):
-    """Parse ``"WxH:dtype:endian"`` into ``(width, height, numpy dtype)``.
+@dataclass(frozen=True)
+class RawLayout:
+    """How headerless slices are laid out: ``width`` x ``height`` values of ``dtype`` (with its byte order).
 
-    >>> width, height, dtype = parse_raw_spec("64x64:uint16:little")
-    >>> width, height, dtype.str
-    (64, 64, '<u2')
+    >>> RawLayout(64, 64, np.dtype("<u2")).slice_bytes
+    8192
     """
-    match = re.fullmatch(r"\s*(\d+)[xX](\d+):(\w+)(?::(\w+))?\s*", spec or "")
-    if not match:
-        raise InputError(f"--raw {spec!r} is not WxH:dtype:endian, e.g. 64x64:uint16:little")
-    width, height, name, endian = match.groups()
-    try:
-        dtype = np.dtype(name)
-    except TypeError:
-        raise InputError(f"--raw: unknown dtype {name!r}; use uint8, int16, uint16, int32, float32, ...") from None
-    if dtype.kind not in "uif":
-        raise InputError(f"--raw: dtype {name!r} is not numeric")
-    orders = {None: "<", "little": "<", "le": "<", "big": ">", "be": ">"}
-    if (endian and endian.lower()) not in orders:
-        raise InputError(f"--raw: byte order {endian!r} must be little or big")
-    dtype = dtype.newbyteorder(orders[endian and endian.lower()])
-    if int(width) == 0 or int(height) == 0:
-        raise InputError(f"--raw {spec!r}: width and height must be positive")
-    return int(width), int(height), dtype
+
+    width: int
+    height: int
+    dtype: np.dtype
+
+    def __post_init__(self):
+        if int(self.width) < 1 or int(self.height) < 1:
+            raise InputError(f"width and height must be positive, not {self.width}x{self.height}", parameter="raw")
+        if np.dtype(self.dtype).kind not in "uif":
+            raise InputError(f"dtype {np.dtype(self.dtype).name!r} is not numeric", parameter="raw")
+
+    @property
+    def slice_bytes(self):
+        return int(self.width) * int(self.height) * np.dtype(self.dtype).itemsize
 
 
 def _files_in(folder):
@@ -137,14 +135,14 @@ def detect_format(path, raw=None):
     if raw is not None:
         return "raw"
     if path.is_file():
-        suffix = path.suffix.lower()
-        known = {".mhd": "metaimage", ".mha": "metaimage", ".npy": "npy", ".tif": "tiff", ".tiff": "tiff"}
-        if suffix in known:
-            return known[suffix]
-        if suffix in DICOM_EXTENSIONS or _is_dicom(path):
+        name = path.name.lower()
+        for format, reader in READERS.items():
+            if any(name.endswith(suffix) for suffix in reader.suffixes):
+                return format
+        if path.suffix.lower() in DICOM_EXTENSIONS or _is_dicom(path):
             raise InputError(f"{path} is one DICOM file; give the folder that holds the whole series")
         raise InputError(f"cannot tell the format of {path}; give a folder of slices, .mhd/.mha, .npy, "
-                         "a multi-page .tif, or headerless slices with --raw WxH:dtype:endian")
+                         "a multi-page .tif, or the layout of headerless slices", parameter="format")
     if not any(p.is_file() for p in path.iterdir()) and not any(p.is_dir() for p in path.iterdir()):
         raise InputError(f"{path} is an empty folder; give a folder of slices")
     if _dicom_files(path):
@@ -156,7 +154,7 @@ def detect_format(path, raw=None):
     if len(metaimages) == 1:
         return "metaimage"
     raise InputError(f"{path} holds no DICOM files or images (PNG, TIFF, BMP, JPEG); "
-                     "for headerless slices give --raw WxH:dtype:endian")
+                     "for headerless slices give their layout", parameter="raw")
 
 
 def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, progress=None):
@@ -167,9 +165,9 @@ def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, pro
     path : str or Path
         A folder of slices or a volume file.
     format : str
-        One of ``auto, images, dicom, metaimage, raw, npy, tiff``.
-    raw : str, optional
-        ``"WxH:dtype:endian"`` for headerless slices (implies ``format="raw"``).
+        ``"auto"`` (detect it) or a name in ``READERS``: ``images, dicom, metaimage, raw, npy, tiff``.
+    raw : RawLayout, optional
+        The layout of headerless slices (implies ``format="raw"``).
     spacing : sequence of 3 floats, optional
         Voxel spacing (x, y, z) in mm; overrides what the files say.
     series : str, optional
@@ -191,41 +189,46 @@ def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, pro
     """
     path = Path(path)
     progress = progress or _identity_progress
-    if format not in FORMATS:
-        raise InputError(f"unknown format {format!r}; choose one of {', '.join(FORMATS)}")
+    if format != "auto" and format not in READERS:
+        raise InputError(f"unknown format {format!r}; choose one of auto, {', '.join(READERS)}", parameter="format")
     if format == "auto":
         format = detect_format(path, raw)
     elif not path.exists():
         raise InputError(f"no such file or folder: {path}")
     if format == "raw" and raw is None:
-        raise InputError("raw slices need --raw WxH:dtype:endian, e.g. 64x64:uint16:little")
+        raise InputError("raw slices need their layout: width, height, dtype and byte order", parameter="raw")
     if format == "metaimage" and path.is_dir():
         path = next(f for f in _files_in(path) if f.suffix.lower() in (".mhd", ".mha"))
-    readers = {"images": _read_images, "dicom": _read_dicom, "metaimage": _read_metaimage,
-               "npy": _read_npy, "tiff": _read_tiff}
-    if format == "raw":
-        volume = _read_raw(path, raw, progress)
-    elif format == "dicom":
-        volume = _read_dicom(path, progress, series)
-    else:
-        volume = readers[format](path, progress)
+    reader = READERS[format]
+    given = {"raw": raw, "series": series}
+    for name, value in given.items():
+        if value is not None and name not in reader.options:
+            raise InputError(f"{format} input takes no {name}", parameter=name)
+    volume = reader.function(path, progress, **{name: given[name] for name in reader.options})
     volume.meta.setdefault("format", format)
     volume.meta.setdefault("source", str(path))
     if spacing is not None:
-        volume.spacing = check_spacing(spacing, "--spacing")
-        volume.meta["spacing_from"] = "--spacing"
+        volume.spacing = check_spacing(spacing)
+        volume.meta["spacing_from"] = "given"
     if volume.values.ndim != 3 or min(volume.values.shape) < 1:
         raise InputError(f"{path} does not hold a 3-D stack (shape {volume.values.shape})")
     return volume
 
 
-def check_spacing(spacing, where):
+def check_spacing(spacing, source=None):
+    """``spacing`` as three positive floats (x, y, z) in mm; ``source`` names the file it came from, if any.
+
+    >>> check_spacing([1, 1, 2.5])
+    (1.0, 1.0, 2.5)
+    """
+    where = f"{source}: " if source else ""
     try:
         values = tuple(float(s) for s in spacing)
     except (TypeError, ValueError):
-        raise InputError(f"{where}: spacing must be three numbers x,y,z in mm") from None
+        values = ()
     if len(values) != 3 or not all(np.isfinite(v) and v > 0 for v in values):
-        raise InputError(f"{where}: spacing must be three positive numbers x,y,z in mm, got {spacing}")
+        raise InputError(f"{where}spacing must be three positive numbers x, y, z in mm, not {spacing}",
+                         parameter=None if source else "spacing")
     return values
 
 
@@ -308,11 +311,11 @@ def _read_dicom(folder, progress, series=None):
         groups.setdefault(str(ds.SeriesInstanceUID), []).append((f, ds))
     if series is not None:
         if series not in groups:
-            raise InputError(f"no series {series} in {folder}; it holds {_list_series(groups)}")
+            raise InputError(f"no series {series} in {folder}; it holds {_list_series(groups)}", parameter="series")
         chosen = groups[series]
     elif len(groups) > 1:
-        raise InputError(f"{folder} holds {len(groups)} DICOM series; choose one with --series UID: "
-                         f"{_list_series(groups)}")
+        raise InputError(f"{folder} holds {len(groups)} DICOM series; choose one by its UID: "
+                         f"{_list_series(groups)}", parameter="series")
     else:
         chosen = next(iter(groups.values()))
     chosen, spacing_z, sorted_by = _sort_dicom(chosen)
@@ -324,7 +327,7 @@ def _read_dicom(folder, progress, series=None):
     if int(getattr(first, "NumberOfFrames", 1) or 1) > 1:
         raise InputError(f"{chosen[0][0]} is a multi-frame DICOM; voxrender reads one slice per file")
     if "PixelSpacing" not in first:
-        warnings.warn("the DICOM series has no PixelSpacing; using 1 mm (give --spacing if that is wrong)",
+        warnings.warn("the DICOM series has no PixelSpacing; using 1 mm (give the spacing if that is wrong)",
                       stacklevel=2)
     pixel = [float(v) for v in getattr(first, "PixelSpacing", [1.0, 1.0])]
 
@@ -457,12 +460,11 @@ def _read_metaimage(path, progress):
                          f"{header['ElementType']} needs {nbytes}; the file is truncated or the header wrong")
     values = np.frombuffer(payload, dtype, count=int(np.prod(dims))).reshape(dims[::-1])
     return Volume(values.astype(dtype.newbyteorder("=")),
-                  check_spacing(spacing, str(path)), {"spacing_from": "MetaImage header"})
+                  check_spacing(spacing, path), {"spacing_from": "MetaImage header"})
 
 
-def _read_raw(path, spec, progress):
-    width, height, dtype = parse_raw_spec(spec)
-    slice_bytes = width * height * dtype.itemsize
+def _read_raw(path, progress, raw):
+    width, height, dtype, slice_bytes = int(raw.width), int(raw.height), np.dtype(raw.dtype), raw.slice_bytes
     if path.is_dir():
         files = [f for f in _files_in(path) if f.suffix.lower() not in NOT_SLICE_EXTENSIONS]
     else:
@@ -472,7 +474,7 @@ def _read_raw(path, spec, progress):
         size = f.stat().st_size
         if size == 0 or size % slice_bytes:
             raise InputError(f"{f} is {size} bytes, not a multiple of one {width}x{height} {dtype.name} slice "
-                             f"({slice_bytes} bytes); check --raw")
+                             f"({slice_bytes} bytes); check the raw layout", parameter="raw")
         counts.append(size // slice_bytes)
     values = np.empty((sum(counts), height, width), dtype.newbyteorder("="))
     z = 0
@@ -510,53 +512,31 @@ def _read_tiff(path, progress):
     return Volume(values, (1.0, 1.0, 1.0), {"spacing_from": "default (TIFF spacing is not read)"})
 
 
-def check_writable(path):
-    """Raise :class:`InputError` now if ``path`` could not be written later.
+@dataclass(frozen=True)
+class Reader:
+    """One input format: its reading function and how to recognise it.
 
-    >>> check_writable("/no/such/folder/out.png")
-    Traceback (most recent call last):
-    ...
-    voxrender.errors.InputError: cannot write /no/such/folder/out.png: folder /no/such/folder does not exist
+    Parameters
+    ----------
+    function : callable
+        ``function(path, progress, **options) -> Volume``.
+    suffixes : tuple of str
+        File name endings (lower case) that mean this format when ``format="auto"``.
+    options : tuple of str
+        The keyword options of :func:`read_volume` it takes (``"raw"``, ``"series"``).
     """
-    path = Path(path)
-    folder = path.parent
-    if not folder.is_dir():
-        raise InputError(f"cannot write {path}: folder {folder} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise InputError(f"cannot write {path}: folder {folder} is not writable")
-    if path.is_dir():
-        raise InputError(f"cannot write {path}: it is a folder; give a file name")
+
+    function: Callable
+    suffixes: tuple = ()
+    options: tuple = ()
 
 
-@contextlib.contextmanager
-def atomic_output(path):
-    """Yield a temporary path beside ``path``; rename it to ``path`` only on success.
-
-    A failure leaves neither a partial file nor the temporary behind.
-    """
-    path = Path(path)
-    check_writable(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the file the usual permissions
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-
-
-def _umask():
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def write_png(path, image):
-    """Write an 8-bit or 16-bit image to ``path`` as PNG, atomically."""
-    import imageio.v3 as iio
-
-    with atomic_output(path) as tmp:
-        iio.imwrite(tmp, image, extension=".png")
+READERS = {
+    "images": Reader(_read_images),
+    "dicom": Reader(_read_dicom, options=("series",)),
+    "metaimage": Reader(_read_metaimage, (".mhd", ".mha")),
+    "raw": Reader(_read_raw, options=("raw",)),
+    "npy": Reader(_read_npy, (".npy",)),
+    "tiff": Reader(_read_tiff, (".tif", ".tiff")),
+}
+FORMATS = ("auto", *READERS)

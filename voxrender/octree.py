@@ -25,7 +25,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 
 from .errors import InputError
-from .io import atomic_output
+from .output import atomic_output
 
 __all__ = ["WHITE", "BLACK", "GREY", "RegionOctree", "build", "linear_octree", "code_strings", "codes_to_mask",
            "save", "load", "CHILD_OFFSETS", "morton"]

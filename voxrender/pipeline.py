@@ -1,7 +1,9 @@
-"""The steps every command shares: from a path on disk to run-length segments.
+"""The steps every command shares: from a path on disk to the encoded object.
 
 A ``.vxs`` file is loaded as it is; anything else is read as a slice stack,
-cropped, resampled, thresholded and encoded.
+cropped, resampled, thresholded and encoded.  The result, :class:`Encoded`, also
+keeps what renderers derive from the segments (the region octree), built once on
+first use, so that a batch worker rendering many views pays for it once.
 """
 
 from __future__ import annotations
@@ -9,19 +11,20 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 from . import io, prep, segments
 from .errors import InputError
 
-__all__ = ["ReadOptions", "PrepOptions", "load_segments", "is_segments_file"]
+__all__ = ["ReadOptions", "PrepOptions", "Encoded", "load_segments", "is_segments_file"]
 
 
-@dataclass
+@dataclass(frozen=True)
 class ReadOptions:
     """How to read a slice stack (see :func:`voxrender.io.read_volume`)."""
 
     format: str = "auto"
-    raw: str | None = None
+    raw: io.RawLayout | None = None
     spacing: tuple | None = None
     series: str | None = None
 
@@ -30,15 +33,19 @@ class ReadOptions:
                               progress=progress)
 
 
-@dataclass
+@dataclass(frozen=True)
 class PrepOptions:
     """How to turn values into a binary object (see :func:`voxrender.prep.binarize`)."""
 
-    threshold: float | str = "otsu"
-    crop: str | None = None
+    threshold: float | Callable = prep.otsu_threshold
+    crop: tuple | None = None
     voxel: float | None = None
     resample: bool = True
     min_object: int = 0
+
+    def __post_init__(self):
+        if self.min_object < 0:
+            raise InputError(f"{self.min_object} must be 0 or more voxels", parameter="min_object")
 
 
 def is_segments_file(path):
@@ -46,15 +53,36 @@ def is_segments_file(path):
 
 
 @dataclass
-class Loaded:
-    """Segments with the seconds spent loading (``load``) and preparing (``prepare``) them."""
+class Encoded:
+    """An encoded object: its segments, the seconds spent loading (``load``) and preparing (``prepare``)
+    them, and the region octree, built on first use and kept (:meth:`octree`)."""
 
     segments: segments.Segments
     seconds: dict = field(default_factory=dict)
+    _octree: object = field(default=None, repr=False)
+
+    def octree(self):
+        """The region octree of the object (built now if it has not been)."""
+        if self._octree is None:
+            from .octree import build   # scipy.sparse: only for the octree methods
+
+            self._octree = build(self.segments.to_mask())
+        return self._octree
 
 
 def load_segments(path, read=None, prepare=None, progress=None):
-    """Segments of the object in ``path``: a ``.vxs`` file, or a slice stack to binarize and encode.
+    """The object in ``path``: a ``.vxs`` file, or a slice stack to binarize and encode.
+
+    Parameters
+    ----------
+    path : str or Path
+    read : ReadOptions, optional
+    prepare : PrepOptions, optional
+    progress : callable, optional
+
+    Returns
+    -------
+    Encoded
 
     Examples
     --------
@@ -70,13 +98,13 @@ def load_segments(path, read=None, prepare=None, progress=None):
     if is_segments_file(path):
         if not Path(path).is_file():
             raise InputError(f"no such file: {path}")
-        return Loaded(segments.load(path), {"load": time.perf_counter() - started, "prepare": 0.0})
+        return Encoded(segments.load(path), {"load": time.perf_counter() - started, "prepare": 0.0})
     volume = read.read(path, progress)
     loaded = time.perf_counter()
-    mask, info = prep.binarize(volume, prepare.threshold, crop_spec=prepare.crop, voxel=prepare.voxel,
+    mask, info = prep.binarize(volume, prepare.threshold, crop=prepare.crop, voxel=prepare.voxel,
                                resample=prepare.resample, min_object=prepare.min_object, progress=progress)
     meta = {"source": str(path), "threshold": info["threshold"], "voxel_mm": info["voxel"],
             "input_shape": list(volume.shape), "input_spacing": list(volume.spacing)}
     meta.update({k: v for k, v in volume.meta.items() if k in ("format", "modality", "units", "series")})
     encoded = segments.encode(mask, info["spacing"], meta)
-    return Loaded(encoded, {"load": loaded - started, "prepare": time.perf_counter() - loaded})
+    return Encoded(encoded, {"load": loaded - started, "prepare": time.perf_counter() - loaded})

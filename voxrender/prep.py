@@ -12,44 +12,33 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["parse_crop", "crop", "resampled_shape", "resample_slices", "resample",
-           "otsu_threshold", "parse_threshold", "binarize"]
+__all__ = ["crop", "resampled_shape", "resample_slices", "resample", "otsu_threshold", "binarize"]
 
 
-def parse_crop(spec, shape):
-    """Turn ``"x0:x1,y0:y1,z0:z1"`` (voxel indices, end excluded, parts may be empty) into slices.
+def crop(values, region=None):
+    """The subregion ``values[region]`` (a view, no copy), after checking that it lies in the volume.
 
-    Returns ``(z_slice, y_slice, x_slice)`` for a volume of ``shape = (nz, ny, nx)``.
+    Parameters
+    ----------
+    values : ndarray ``[z, y, x]``
+    region : tuple of 3 slices, optional
+        ``(z, y, x)`` ranges in voxel indices, end excluded; ``slice(None)`` keeps an axis whole.
 
-    >>> parse_crop("10:20,:,5:", (8, 30, 40))
-    (slice(5, 8, None), slice(0, 30, None), slice(10, 20, None))
+    Examples
+    --------
+    >>> crop(np.zeros((4, 5, 6)), (slice(None), slice(None), slice(1, 3))).shape
+    (4, 5, 2)
     """
-    parts = (spec or "").split(",")
-    if len(parts) != 3:
-        raise InputError(f"--crop {spec!r} must be x0:x1,y0:y1,z0:z1 (parts may be empty, e.g. ':,:,10:50')")
-    result = []
-    for axis, part, n in zip("xyz", parts, shape[::-1]):
-        lo, sep, hi = part.partition(":")
-        try:
-            lo = int(lo) if lo.strip() else 0
-            hi = int(hi) if hi.strip() else n
-        except ValueError:
-            raise InputError(f"--crop {spec!r}: {axis} range {part!r} is not a:b with whole numbers") from None
-        if not sep and part.strip():
-            raise InputError(f"--crop {spec!r}: {axis} range {part!r} needs a colon, as in {part}:{n}")
+    if region is None:
+        return values
+    if len(region) != 3 or not all(isinstance(r, slice) and r.step in (None, 1) for r in region):
+        raise InputError(f"{region!r} must be three slices (z, y, x) without steps", parameter="crop")
+    for axis, part, n in zip("zyx", region, values.shape):
+        lo = 0 if part.start is None else part.start
+        hi = n if part.stop is None else part.stop
         if not 0 <= lo < hi <= n:
-            raise InputError(f"--crop {axis} range {lo}:{hi} is outside the volume's {axis} range 0:{n}")
-        result.append(slice(lo, hi))
-    return tuple(result[::-1])
-
-
-def crop(values, spec):
-    """The subregion of ``values[z, y, x]`` named by a crop spec (a view, no copy).
-
-    >>> crop(np.zeros((4, 5, 6)), "1:3,:,2:").shape
-    (2, 5, 2)
-    """
-    return values[parse_crop(spec, values.shape)] if spec else values
+            raise InputError(f"{axis} range {lo}:{hi} is outside the volume's {axis} range 0:{n}", parameter="crop")
+    return values[tuple(region)]
 
 
 def _grid_count(n, spacing, voxel):
@@ -137,34 +126,20 @@ def otsu_threshold(values):
     return float((below[-1] + above[0]) / 2) if len(below) and len(above) else threshold
 
 
-def parse_threshold(text):
-    """A threshold from the command line: a number or ``"otsu"``.
-
-    >>> parse_threshold("-300"), parse_threshold("otsu")
-    (-300.0, 'otsu')
-    """
-    if isinstance(text, str) and text.strip().lower() == "otsu":
-        return "otsu"
-    try:
-        value = float(text)
-    except (TypeError, ValueError):
-        raise InputError(f"--threshold {text!r} must be a number (in stored units, HU for CT) or 'otsu'") \
-            from None
-    if not math.isfinite(value):
-        raise InputError(f"--threshold {text!r} must be a finite number")
-    return value
+_crop = crop  # binarize's parameter of the same name hides the function
 
 
-def binarize(volume, threshold, *, crop_spec=None, voxel=None, resample=True, min_object=0, progress=None):
+def binarize(volume, threshold=otsu_threshold, *, crop=None, voxel=None, resample=True, min_object=0, progress=None):
     """Crop, resample to cubic voxels, and threshold a :class:`~voxrender.io.Volume`.
 
     Parameters
     ----------
     volume : Volume
-    threshold : float or "otsu"
-        Voxels with value ``>= threshold`` (stored units) belong to the object.
-    crop_spec : str, optional
-        ``"x0:x1,y0:y1,z0:z1"`` in input voxel indices.
+    threshold : float or callable
+        Voxels with value ``>= threshold`` (stored units) belong to the object; a callable is given the
+        (cropped) values and returns the threshold, like the default :func:`otsu_threshold`.
+    crop : tuple of 3 slices, optional
+        The ``(z, y, x)`` subregion in input voxel indices (see :func:`crop`).
     voxel : float, optional
         Size of the cubic voxels in mm (default: the smallest spacing).
     resample : bool
@@ -186,18 +161,20 @@ def binarize(volume, threshold, *, crop_spec=None, voxel=None, resample=True, mi
     >>> mask.shape, int(mask.sum()), info["voxel"]
     ((9, 4, 4), 28, 1.0)
     """
-    values = crop(volume.values, crop_spec)
-    if threshold == "otsu":
-        threshold = otsu_threshold(values)
+    values = _crop(volume.values, crop)
+    if callable(threshold):
+        threshold = threshold(values)
+    if not math.isfinite(threshold):
+        raise InputError(f"{threshold} must be a finite number", parameter="threshold")
     spacing = tuple(float(s) for s in volume.spacing)
     if voxel is not None and not (voxel > 0 and math.isfinite(voxel)):
-        raise InputError(f"--voxel {voxel} must be a positive size in mm")
+        raise InputError(f"{voxel} must be a positive size in mm", parameter="voxel")
     voxel = float(voxel or min(spacing))
     if resample and not all(math.isclose(s, voxel) for s in spacing):
         out_shape = resampled_shape(values.shape, spacing, voxel)
         if math.prod(out_shape) > 4e9:
             raise InputError(f"resampling to {voxel:g} mm voxels would give {out_shape[::-1]} voxels; "
-                             "choose a larger --voxel or --crop a subregion")
+                             "choose a larger voxel or crop a subregion", parameter="voxel")
         mask = np.empty(out_shape, bool)
         for k, plane in enumerate(resample_slices(values, spacing, voxel, progress)):
             np.greater_equal(plane, threshold, out=mask[k])
@@ -211,5 +188,5 @@ def binarize(volume, threshold, *, crop_spec=None, voxel=None, resample=True, mi
     if not mask.any():
         low, high = np.min(values), np.max(values)
         raise InputError(f"threshold {threshold:g} leaves no object voxel: values range from {low:g} to "
-                         f"{high:g}; choose a threshold in that range (try 'voxrender info')")
+                         f"{high:g}; choose a threshold in that range", parameter="threshold")
     return mask, {"threshold": float(threshold), "voxel": voxel, "spacing": spacing}

@@ -2,20 +2,16 @@
 
 Each phantom is a grey-value volume ``[z, y, x]`` of unsigned 16-bit "stored
 values": about 0 for air and about 1000 for the object, so a threshold of 500
-separates them.  :func:`write_samples` writes each as a folder of 16-bit PNG
-slices (``slice_000.png`` ...), the format a user's own image folder would have.
+separates them.  The functions return arrays; ``voxrender samples`` writes each as a
+folder of 16-bit PNG slices (:func:`voxrender.output.write_slices`), the format a user's
+own image folder would have.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from .io import atomic_output
-
-__all__ = ["SAMPLES", "sphere", "torus", "shell", "staircase", "cylinder", "write_samples", "STAIRCASE_VOXELS", "demo_picture",
-           "DEMO_VIEW"]
+__all__ = ["SAMPLES", "SAMPLE_THRESHOLD", "sphere", "torus", "shell", "staircase", "cylinder", "STAIRCASE_VOXELS"]
 
 AIR, OBJECT = 40, 1040
 SAMPLE_THRESHOLD = 500
@@ -123,45 +119,3 @@ def cylinder(n=64, radius=None, axis=(0.25, 0.15, 0.8)):
 
 
 SAMPLES = {"sphere": sphere, "torus": torus, "shell": shell, "staircase": staircase, "cylinder": cylinder}
-
-
-def write_slices(values, folder):
-    """Write ``values[z, y, x]`` (uint16) as 16-bit PNG slices ``slice_000.png`` ... into ``folder``."""
-    import imageio.v3 as iio
-
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    for z, plane in enumerate(values):
-        with atomic_output(folder / f"slice_{z:03d}.png") as tmp:
-            iio.imwrite(tmp, plane, extension=".png")
-    return folder
-
-
-def write_samples(folder="samples", names=None):
-    """Write the named samples (default: all) as slice folders under ``folder``; return their paths.
-
-    >>> import tempfile
-    >>> [p.name for p in write_samples(tempfile.mkdtemp(), ["staircase"])]
-    ['staircase']
-    """
-    names = list(SAMPLES) if names is None else list(names)
-    return [write_slices(SAMPLES[name](), Path(folder) / name) for name in names]
-
-
-def demo_picture(folder="samples", progress=None):
-    """The demo: write the samples into ``folder`` if absent, render the shell; return ``(rgb, DepthImage)``."""
-    from .pipeline import PrepOptions, load_segments
-    from .render import render
-    from .shade import shade
-    from .view import View
-
-    shell_folder = Path(folder) / "shell"
-    if not shell_folder.is_dir():
-        write_samples(folder)
-    loaded = load_segments(shell_folder, prepare=PrepOptions(threshold=SAMPLE_THRESHOLD))
-    image = render(loaded.segments, View(**DEMO_VIEW), progress=progress)
-    return shade(image.depth, "gradient", image.view.scale), image
-
-
-# The shell seen from the front, a little from the left and above: both eye holes show.
-DEMO_VIEW = {"alpha": 100.0, "beta": 20.0, "gamma": 0.0, "size": (256, 256)}

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .io import atomic_output
+from .output import atomic_output
 
 __all__ = ["Segments", "encode", "save", "load"]
 
@@ -51,16 +51,6 @@ class Segments:
     offsets: np.ndarray
     spacing: tuple[float, float, float] = (1.0, 1.0, 1.0)
     meta: dict = field(default_factory=dict)
-    _octree: object = field(default=None, init=False, repr=False, compare=False)
-
-    def octree(self):
-        """The region octree of this object (built on first use and kept: octree renderers share it)."""
-        if self._octree is None:
-            from .octree import build
-
-            self._octree = build(self.to_mask())
-        return self._octree
-
     @property
     def segment_count(self):
         return int(self.offsets[-1])

@@ -1,4 +1,4 @@
-"""From depth image to picture: depth shading, gradient shading, the gamma rotation, 8/16-bit output.
+"""From depth image to picture: depth shading, gradient shading, 8/16-bit output.
 
 Gradient shading (Gordon and Reynolds; the dynamic-screen paper's section 2.4)
 estimates the surface normal at each pixel from the gradient of the depth
@@ -11,8 +11,7 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["shade", "depth_shading", "gradient_shading", "surface_normals", "rotate_depth", "depth_to_uint16",
-           "parse_colour", "parse_vector"]
+__all__ = ["shade", "depth_shading", "gradient_shading", "surface_normals", "depth_to_uint16"]
 
 
 def _depth_range(depth):
@@ -114,7 +113,7 @@ def gradient_shading(depth, scale=1.0, light=(0.0, 0.0, -1.0), ambient=0.1, dept
     """
     light = np.asarray(light, dtype=float)
     if light.shape != (3,) or not np.linalg.norm(light) > 0:
-        raise InputError(f"--light {tuple(light)} must be a non-zero direction x,y,z")
+        raise InputError(f"{tuple(light)} must be a non-zero direction x, y, z", parameter="light")
     lambert = np.clip(surface_normals(depth, scale, smoothing) @ (light / np.linalg.norm(light)), 0, 1)
     covered, near, far = _depth_range(depth)
     cue = 1 - depth_cue * np.where(covered, (np.where(covered, depth, near) - near) / (far - near), 0)
@@ -146,53 +145,10 @@ def shade(depth, mode="gradient", scale=1.0, light=(0.0, 0.0, -1.0), colour=(1.0
     elif mode == "depth":
         brightness = depth_shading(depth)
     else:
-        raise InputError(f"unknown shading {mode!r}; choose gradient or depth")
+        raise InputError(f"unknown shading {mode!r}; choose gradient or depth", parameter="shading")
     rgb = brightness[..., None] * np.asarray(colour, dtype=float) * 255
     rgb = np.where(np.isfinite(depth)[..., None], rgb, np.asarray(background, dtype=float))
     return np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
-
-
-def rotate_depth(pre_image, gamma, size, pre_scale, scale):
-    """Rotate a pre-image (rendered with ``gamma = 0``) by ``gamma`` about the view axis.
-
-    The paper's Theorem 2: rotations alpha and beta give the view direction, gamma
-    only turns the picture.  Final pixel centre ``(X', Y')`` takes the nearest
-    pre-image pixel to ``Rz(-gamma) (X', Y')``; a pre-image rendered at a larger
-    ``pre_scale`` (supersampled) makes that nearest sample close.  Depth is
-    unchanged by a rotation about ``Z'``.
-
-    Parameters
-    ----------
-    pre_image : ndarray (Hp, Wp)
-    gamma : float
-        Degrees.
-    size : (H, W)
-        Final image size.
-    pre_scale, scale : float
-        Pixels per voxel of the pre-image and of the final image.
-
-    >>> pre = np.arange(16.0).reshape(4, 4)
-    >>> rotate_depth(pre, 90, (4, 4), 1.0, 1.0)[0].tolist()
-    [12.0, 8.0, 4.0, 0.0]
-    """
-    from skimage.transform import AffineTransform, warp
-
-    height, width = size
-    pre_height, pre_width = pre_image.shape
-    g = np.radians(gamma)
-    # final pixel (col, row) -> image (X', Y') -> pre-image (Xp, Yp) = Rz(-gamma)(X', Y') -> pre pixel.
-    to_image = np.array([[1 / scale, 0, (0.5 - width / 2) / scale], [0, 1 / scale, (0.5 - height / 2) / scale],
-                         [0, 0, 1]])
-    unrotate = np.array([[np.cos(g), np.sin(g), 0], [-np.sin(g), np.cos(g), 0], [0, 0, 1]])
-    to_pre = np.array([[pre_scale, 0, pre_width / 2 - 0.5], [0, pre_scale, pre_height / 2 - 0.5], [0, 0, 1]])
-    covered = np.isfinite(pre_image)
-    far = float(pre_image[covered].max()) + 1 if covered.any() else 0.0
-    filled = np.where(covered, pre_image, far)
-    rotated = warp(filled, AffineTransform(matrix=to_pre @ unrotate @ to_image), output_shape=(height, width),
-                   order=0, mode="constant", cval=far, preserve_range=True)
-    hit = warp(covered.astype(np.uint8), AffineTransform(matrix=to_pre @ unrotate @ to_image),
-               output_shape=(height, width), order=0, mode="constant", cval=0, preserve_range=True) > 0
-    return np.where(hit, rotated, np.inf).astype(np.float32)
 
 
 def depth_to_uint16(depth):
@@ -205,39 +161,3 @@ def depth_to_uint16(depth):
     out = np.zeros(depth.shape, np.uint16)
     out[covered] = np.rint(1 + (far - depth[covered]) / (far - near) * 65534).astype(np.uint16)
     return out
-
-
-def parse_vector(text, name, count=3):
-    """``"1,2,3"`` to a tuple of floats, with a clear error.
-
-    >>> parse_vector("1, -2,0.5", "--light")
-    (1.0, -2.0, 0.5)
-    """
-    try:
-        values = tuple(float(v) for v in str(text).split(","))
-    except ValueError:
-        values = ()
-    if len(values) != count or not all(np.isfinite(values)):
-        raise InputError(f"{name} {text!r} must be {count} numbers separated by commas")
-    return values
-
-
-def parse_colour(text):
-    """A background colour: a grey level ``"40"`` or ``"r,g,b"`` in 0..255, or a name (black, white).
-
-    >>> parse_colour("white"), parse_colour("20,30,40"), parse_colour("7")
-    ((255, 255, 255), (20, 30, 40), (7, 7, 7))
-    """
-    names = {"black": (0, 0, 0), "white": (255, 255, 255), "grey": (128, 128, 128), "gray": (128, 128, 128)}
-    if str(text).lower() in names:
-        return names[str(text).lower()]
-    parts = str(text).split(",")
-    try:
-        values = tuple(int(p) for p in parts)
-    except ValueError:
-        values = ()
-    if len(values) == 1:
-        values = values * 3
-    if len(values) != 3 or not all(0 <= v <= 255 for v in values):
-        raise InputError(f"--background {text!r} must be a grey level 0..255, r,g,b, black or white")
-    return values

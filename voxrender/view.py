@@ -17,7 +17,7 @@ import numpy as np
 from .errors import InputError
 
 __all__ = ["View", "rotation_matrix", "angles_from_matrix", "angles_from_vpn", "vpn_from_angles",
-           "PRESETS", "fit_scale", "pixel_centres"]
+           "PRESETS", "fit_scale"]
 
 # Viewer positions for a stack read in DICOM patient order (LPS): x runs to the
 # patient's left, y to the back, z up to the head.  Image up is the head (or, seen
@@ -72,7 +72,7 @@ def angles_from_matrix(matrix):
     """
     t = np.asarray(matrix, dtype=float)
     if t.shape != (3, 3) or not np.allclose(t @ t.T, np.eye(3), atol=1e-6) or np.linalg.det(t) < 0:
-        raise InputError("not a rotation matrix")
+        raise InputError("not a rotation matrix", parameter="matrix")
     sin_beta = -t[2, 0]
     if abs(sin_beta) < 1 - 1e-12:
         beta = math.asin(max(-1.0, min(1.0, sin_beta)))
@@ -116,7 +116,7 @@ def angles_from_vpn(vpn):
     v = np.asarray(vpn, dtype=float)
     norm = np.linalg.norm(v) if v.shape == (3,) else 0
     if not norm or not np.isfinite(norm):
-        raise InputError(f"--vpn {tuple(vpn)} is not a non-zero direction i,j,k")
+        raise InputError(f"{tuple(vpn)} is not a non-zero direction i, j, k", parameter="vpn")
     i, j, k = v / norm
     # The view direction d = -vpn is R's last row: (-sin b, sin a cos b, cos a cos b).
     beta = math.asin(max(-1.0, min(1.0, i)))
@@ -166,16 +166,65 @@ class View:
     def __post_init__(self):
         height, width = self.size
         if int(height) < 1 or int(width) < 1:
-            raise InputError(f"image size {width}x{height} must be at least 1x1")
+            raise InputError(f"{width}x{height} must be at least 1x1 pixels", parameter="size")
         if self.scale is not None and not (self.scale > 0 and math.isfinite(self.scale)):
-            raise InputError(f"--scale {self.scale} must be a positive number of pixels per voxel")
+            raise InputError(f"{self.scale} must be a positive number of pixels per voxel", parameter="scale")
         for name in ("alpha", "beta", "gamma"):
             if not math.isfinite(getattr(self, name)):
-                raise InputError(f"--{name} must be a finite angle in degrees")
+                raise InputError(f"{getattr(self, name)} must be a finite angle in degrees", parameter=name)
 
     @property
     def matrix(self):
         return rotation_matrix(self.alpha, self.beta, self.gamma)
+
+    # The contract's mappings.  Every renderer, the clipper, the pre-image turn and the ray caster use these,
+    # so that the contract is written once.
+
+    def to_image(self, x, y, z, shape):
+        """Image-space ``(X', Y', Z')`` of object points ``(x, y, z)`` of a ``shape = (nz, ny, nx)`` volume.
+
+        ``p' = R (p - c)``, written out per component, so that one point or many give the same bits.
+
+        >>> [float(v) for v in View(alpha=90).to_image(2.0, 0.0, 0.0, (3, 3, 3))]
+        [1.0, 1.0, -1.0]
+        """
+        nz, ny, nx = shape
+        px, py, pz = np.asarray(x) - (nx - 1) / 2, np.asarray(y) - (ny - 1) / 2, np.asarray(z) - (nz - 1) / 2
+        r = self.matrix
+        return tuple(r[k, 0] * px + r[k, 1] * py + r[k, 2] * pz for k in range(3))
+
+    def to_object(self, x, y, z, shape):
+        """Object ``(x, y, z)`` of image-space points ``(X', Y', Z')``: the inverse of :meth:`to_image`.
+
+        >>> [float(v) for v in View(alpha=90).to_object(1.0, 1.0, -1.0, (3, 3, 3))]
+        [2.0, 0.0, 0.0]
+        """
+        centre = (np.array(shape[::-1], dtype=float) - 1) / 2
+        r = self.matrix
+        return tuple(centre[k] + np.asarray(x) * r[0, k] + np.asarray(y) * r[1, k] + np.asarray(z) * r[2, k]
+                     for k in range(3))
+
+    def pixel_centres(self, columns=None, rows=None):
+        """Image-space ``X'`` of pixel ``columns`` and ``Y'`` of pixel ``rows`` (default: all of them).
+
+        Indices outside the picture are allowed (renderers test windows that overhang it).
+
+        >>> View(size=(2, 4), scale=1.0).pixel_centres()
+        (array([-1.5, -0.5,  0.5,  1.5]), array([-0.5,  0.5]))
+        """
+        height, width = self.size
+        columns = np.arange(width) if columns is None else columns
+        rows = np.arange(height) if rows is None else rows
+        return (columns + 0.5 - width / 2) / self.scale, (rows + 0.5 - height / 2) / self.scale
+
+    def pixel_index(self, x, y):
+        """Continuous ``(column, row)`` of image points ``(X', Y')``: whole numbers at pixel centres.
+
+        >>> [float(v) for v in View(size=(2, 4), scale=1.0).pixel_index(-1.5, 0.5)]
+        [0.0, 1.0]
+        """
+        height, width = self.size
+        return np.asarray(x) * self.scale + width / 2 - 0.5, np.asarray(y) * self.scale + height / 2 - 0.5
 
     def fitted(self, shape, box=None):
         """This view with ``scale`` set (when it is ``None``: fitted to the volume, or to ``box``)."""
@@ -185,17 +234,8 @@ class View:
     def preset(cls, name, **kwargs):
         """A named view (see ``PRESETS``)."""
         if name not in PRESETS:
-            raise InputError(f"unknown view {name!r}; choose one of {', '.join(PRESETS)}")
+            raise InputError(f"unknown view {name!r}; choose one of {', '.join(PRESETS)}", parameter="view")
         alpha, beta, gamma = PRESETS[name]
         return cls(alpha=alpha, beta=beta, gamma=gamma, **kwargs)
 
 
-def pixel_centres(view):
-    """Image-space ``X'`` of each column and ``Y'`` of each row of ``view`` (scale must be set).
-
-    >>> pixel_centres(View(size=(2, 4), scale=1.0))
-    (array([-1.5, -0.5,  0.5,  1.5]), array([-0.5,  0.5]))
-    """
-    height, width = view.size
-    return ((np.arange(width) + 0.5 - width / 2) / view.scale,
-            (np.arange(height) + 0.5 - height / 2) / view.scale)

@@ -1,15 +1,17 @@
-"""Renderers: one module per algorithm, and the registry ``METHODS`` from name to function.
+"""Renderers: one module per algorithm, and the registry ``METHODS`` of :class:`Method` records.
 
-Every renderer takes :class:`~voxrender.segments.Segments` and a fitted
-:class:`~voxrender.view.View` and returns ``(depth, stats)``: the float32 depth
-image of the view contract (``+inf`` where the ray meets nothing) and a dict of
-the algorithm's own counts.
+Every renderer is a function ``f(segments, view, progress=None, clip=None, **options)`` that takes
+:class:`~voxrender.segments.Segments` and a :class:`~voxrender.view.View` with its scale set, and
+returns ``(depth, stats)``: the float32 depth image of the view contract (``+inf`` where the ray meets
+nothing) and a dict of the algorithm's own counts.  Its record says what else it needs.  Adding a
+renderer is one module and one record (see ``docs/design.md``).
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -18,27 +20,74 @@ from ..view import View
 from .btf import render_btf
 from .clip import Clip
 from .ftb import render_ftb
-from .preimage import render_preimage
 from .octree_btf import render_octree_btf
 from .octree_ftb import render_octree_ftb
 from .octree_sort import render_octree_sort, render_zbuffer
+from .preimage import render_preimage
 from .raycast import render_raycast
 
-__all__ = ["METHODS", "DEFAULT_METHOD", "DepthImage", "Clip", "render", "render_preimage"]
+__all__ = ["Method", "METHODS", "DEFAULT_METHOD", "DepthImage", "Clip", "render", "method_record"]
+
+
+@dataclass(frozen=True)
+class Method:
+    """What the rest of voxrender needs to know about one rendering algorithm.
+
+    Parameters
+    ----------
+    function : callable
+        The renderer, ``function(segments, view, progress=None, clip=None, **options) -> (depth, stats)``.
+    summary : str
+        The algorithm and its paper, in a line.
+    options : tuple of str
+        The keyword options it takes besides ``progress`` and ``clip`` (e.g. ``"connectivity"``).
+    preimage : bool
+        It renders only alpha and beta (object rows parallel to scanlines, Theorem 1); gamma turns its
+        supersampled pre-image (Theorem 2).  Such a method must return its item buffer (``items``).
+    items : bool
+        Called with ``items=True`` it also returns its item buffer ``(owner, boxes)``.
+    octree : bool
+        It traverses the region octree and takes it as ``tree=`` (built from the segments when not given).
+    """
+
+    function: Callable
+    summary: str
+    options: tuple = ()
+    preimage: bool = False
+    items: bool = False
+    octree: bool = False
+
+    def __post_init__(self):
+        if self.preimage and not self.items:
+            raise ValueError("a pre-image method must return its item buffer (items=True)")
+
 
 METHODS = {
-    "ftb": render_ftb,
-    "btf": render_btf,
-    "raycast": render_raycast,
-    "octree-btf": render_octree_btf,
-    "octree-ftb": render_octree_ftb,
-    "octree-sort": render_octree_sort,
-    "zbuffer": render_zbuffer,
+    "ftb": Method(render_ftb, "the dynamic screen, front to back (Reynolds, Gordon and Chen)",
+                  preimage=True, items=True),
+    "btf": Method(render_btf, "back to front, voxel by voxel (Frieder, Gordon and Reynolds)"),
+    "raycast": Method(render_raycast, "discrete ray casting, 6-, 26- or adaptive rays (Cohen-Or and Kaufman)",
+                      options=("connectivity", "compare")),
+    "octree-btf": Method(render_octree_btf, "Meagher's back-to-front octree display", octree=True),
+    "octree-ftb": Method(render_octree_ftb, "front-to-back octree display with blocking quadtrees (Zhao and Davis)",
+                         octree=True),
+    "octree-sort": Method(render_octree_sort, "the sorted linear octree (Chandran, Gupta and Patgawkar)",
+                          options=("order",), octree=True),
+    "zbuffer": Method(render_zbuffer, "the back-face-culled z-buffer of the same voxels (idem, Table 4)",
+                      options=("count_writes",), octree=True),
 }
 DEFAULT_METHOD = "ftb"
-# Methods that render only alpha and beta (rows stay parallel to scanlines, Theorem 1);
-# gamma is then applied by rotating a supersampled pre-image (Theorem 2).
-PREIMAGE_METHODS = {"ftb"}
+
+
+def method_record(name):
+    """The :class:`Method` registered as ``name``; an :class:`InputError` naming the choices otherwise.
+
+    >>> method_record("raycast").options
+    ('connectivity', 'compare')
+    """
+    if name not in METHODS:
+        raise InputError(f"unknown method {name!r}; choose one of {', '.join(METHODS)}", parameter="method")
+    return METHODS[name]
 
 
 @dataclass
@@ -57,30 +106,61 @@ class DepthImage:
 
 
 def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, clip=None, fit="volume",
-           **options):
-    """Render ``segments`` with ``method`` from ``view`` (scale fitted when unset).
+           tree=None, **options):
+    """Render ``segments`` with ``method`` from ``view``.
 
-    ``supersample`` is the pre-image's scale factor for methods that apply gamma by
-    rotating a pre-image; ``clip`` is a :class:`Clip` (clip limits, cut plane) or ``None``;
-    ``fit`` chooses what an unset scale fits at any rotation: the ``"volume"`` (the contract's
-    default) or the ``"object"`` (its bounding box; it still turns about the volume centre);
-    further ``options`` go to the method (``connectivity`` for ``raycast``).
+    Parameters
+    ----------
+    segments : Segments
+        The object.
+    view : View
+        Angles and picture size; an unset ``scale`` is fitted (see ``fit``).
+    method : str
+        A name in ``METHODS``.
+    progress : callable, optional
+        ``progress(iterable, length, label)``, e.g. a progress bar.
+    supersample : int
+        The pre-image's scale over the picture's, for methods that turn a pre-image by gamma.
+    clip : Clip, optional
+        Clip limits and cut plane.
+    fit : {"volume", "object"}
+        What an unset scale fits at any rotation: the whole volume (the contract's default) or the
+        object's bounding box (it still turns about the volume centre).
+    tree : RegionOctree, optional
+        The object's region octree, for octree methods (built here when not given).
+    **options
+        The method's own options (its record's ``options``, e.g. ``connectivity`` for ``raycast``).
 
+    Returns
+    -------
+    DepthImage
+        The depth image, the fitted view, the renderer's statistics and its seconds.
+
+    Examples
+    --------
     >>> from voxrender.segments import encode
     >>> image = render(encode(np.ones((3, 3, 3), bool)), View(size=(8, 8), scale=1.0))
     >>> int(image.coverage.sum()), image.stats["pixels_lit"]
     (16, 16)
     """
-    if method not in METHODS:
-        raise InputError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+    record = method_record(method)
+    unknown = sorted(set(options) - set(record.options))
+    if unknown:
+        takes = ", ".join(record.options) or "none"
+        raise InputError(f"method {method!r} takes no option {unknown[0]!r} (its options: {takes})",
+                         parameter=unknown[0])
     if not segments.segment_count:
         raise InputError("the object is empty: no voxel reaches the threshold")
     if fit not in ("volume", "object"):
-        raise InputError(f"--fit {fit!r}: choose volume or object")
+        raise InputError(f"{fit!r}: choose 'volume' or 'object'", parameter="fit")
+    if int(supersample) < 1:
+        raise InputError(f"{supersample!r}: must be a whole number >= 1", parameter="supersample")
     view = view.fitted(segments.shape, segments.bounding_box() if fit == "object" else None)
+    if record.octree:
+        options["tree"] = tree
     started = time.perf_counter()
-    if method in PREIMAGE_METHODS and view.gamma % 360:
-        depth, stats = render_preimage(METHODS[method], segments, view, supersample, progress, clip)
+    if record.preimage and view.gamma % 360:
+        depth, stats = render_preimage(record.function, segments, view, supersample, progress, clip, **options)
     else:
-        depth, stats = METHODS[method](segments, view, progress=progress, clip=clip, **options)
+        depth, stats = record.function(segments, view, progress=progress, clip=clip, **options)
     return DepthImage(depth, view, method, stats, time.perf_counter() - started)

@@ -24,10 +24,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..view import pixel_centres
-from .geometry import footprint, ray_cube_entry
+from .geometry import EPS, paint_boxes, ray_box_entry, reach
 
-__all__ = ["render_btf", "render_btf_literal", "back_to_front", "expand_runs", "slice_runs", "paint_voxels"]
+__all__ = ["render_btf", "render_btf_literal", "back_to_front", "expand_runs", "slice_runs"]
 
 
 def back_to_front(n, direction):
@@ -52,43 +51,13 @@ def expand_runs(rows, starts, ends):
     return np.repeat(rows, lengths), x
 
 
-def slice_runs(segments, z, matrix, clip=None):
+def slice_runs(segments, z, view, clip=None):
     """``(rows, starts, ends)`` of slice ``z``, clipped when ``clip`` is given."""
     rows, starts, ends = segments.slice(z)
     if clip is not None and clip.active:
-        keep, starts, ends = clip.apply_runs(z, rows, starts, ends, matrix, segments.shape)
+        keep, starts, ends = clip.apply_runs(z, rows, starts, ends, view, segments.shape)
         rows, starts, ends = rows[keep], starts[keep], ends[keep]
     return rows, starts, ends
-
-
-def _centres(matrix, shape, z, y, x):
-    """Image-space ``(Xc, Yc, Zc)`` of voxel centres (written out, so one voxel or many give the same bits)."""
-    nz, ny, nx = shape
-    px, py = np.asarray(x) - (nx - 1) / 2, np.asarray(y) - (ny - 1) / 2
-    pz = np.broadcast_to(np.asarray(z) - (nz - 1) / 2, np.shape(px))
-    return tuple(matrix[k, 0] * px + matrix[k, 1] * py + matrix[k, 2] * pz for k in range(3))
-
-
-def paint_voxels(matrix, view, shape, z, y, x):
-    """Every (pixel, depth, voxel) where a pixel's ray enters one of the given voxels' cubes.
-
-    ``pixels`` are flat indices into the (H, W) picture, ``voxels`` index the given voxels.
-    """
-    height, width = view.size
-    scale = view.scale
-    xc, yc, zc = _centres(matrix, shape, z, y, x)
-    hx, hy, kx, ky = footprint(matrix, scale)
-    i0 = np.ceil(xc * scale + width / 2 - 0.5 - hx - 1e-9).astype(np.int64)
-    j0 = np.ceil(yc * scale + height / 2 - 0.5 - hy - 1e-9).astype(np.int64)
-    i = i0[:, None, None] + np.arange(kx)[None, None, :]
-    j = j0[:, None, None] + np.arange(ky)[None, :, None]
-    dx = (i + 0.5 - width / 2) / scale - xc[:, None, None]
-    dy = (j + 0.5 - height / 2) / scale - yc[:, None, None]
-    hit, entry = ray_cube_entry(dx, dy, matrix)
-    hit &= (i >= 0) & (i < width) & (j >= 0) & (j < height)
-    pixels = (np.broadcast_to(j, hit.shape) * width + np.broadcast_to(i, hit.shape))[hit]
-    depths = (entry + zc[:, None, None])[hit]
-    return pixels, depths, np.nonzero(hit)[0]
 
 
 def render_btf(segments, view, progress=None, clip=None):
@@ -125,10 +94,10 @@ def render_btf(segments, view, progress=None, clip=None):
     stats = {"slices": 0, "rows": 0, "voxels_projected": 0, "pixel_writes": 0}
     order = back_to_front(segments.shape[0], matrix[2, 2])
     for z in (progress(order, len(order), "btf") if progress else order):
-        y, x = expand_runs(*slice_runs(segments, z, matrix, clip))
+        y, x = expand_runs(*slice_runs(segments, z, view, clip))
         if not len(x):
             continue
-        pixels, depths, _ = paint_voxels(matrix, view, segments.shape, z, y, x)
+        pixels, depths, _, _ = paint_boxes(view, segments.shape, x, y, z)
         np.minimum.at(buffer, pixels, depths)
         image[pixels] = np.minimum(image[pixels], buffer[pixels])   # nearer, or a tie: see the module
         buffer[pixels] = np.inf
@@ -148,8 +117,8 @@ def render_btf_literal(segments, view, clip=None):
     matrix = view.matrix
     height, width = view.size
     nz, ny, nx = segments.shape
-    columns, rows = pixel_centres(view)
-    hx, hy, _, _ = footprint(matrix, view.scale)
+    columns, rows = view.pixel_centres()
+    rx, ry = reach(matrix, (0.5, 0.5, 0.5))
     image = np.full((height, width), np.inf)
     stats = {"slices": 0, "rows": 0, "voxels_projected": 0, "pixel_writes": 0}
     for z in back_to_front(nz, matrix[2, 2]):
@@ -157,7 +126,7 @@ def render_btf_literal(segments, view, clip=None):
         for y in back_to_front(ny, matrix[2, 1]):
             starts, ends = segments.row(z, y)
             if clip is not None and clip.active:
-                keep, starts, ends = clip.apply_runs(z, y, starts, ends, matrix, segments.shape)
+                keep, starts, ends = clip.apply_runs(z, y, starts, ends, view, segments.shape)
                 starts, ends = starts[keep], ends[keep]
             if not len(starts):
                 continue
@@ -165,16 +134,15 @@ def render_btf_literal(segments, view, clip=None):
             stats["rows"] += 1
             voxels = [x for s, e in zip(starts, ends) for x in range(s, e + 1)]
             for x in (reversed(voxels) if matrix[2, 0] > 0 else voxels):
-                xc, yc, zc = (float(c[0]) for c in _centres(matrix, segments.shape, z, np.array([y]),
-                                                              np.array([x])))
+                xc, yc, zc = (float(c) for c in view.to_image(x, y, z, segments.shape))
                 stats["voxels_projected"] += 1
                 for j in range(height):
-                    if abs(rows[j] - yc) * view.scale > hy + 1e-9:
+                    if abs(rows[j] - yc) > ry + EPS:
                         continue
                     for i in range(width):
-                        if abs(columns[i] - xc) * view.scale > hx + 1e-9:
+                        if abs(columns[i] - xc) > rx + EPS:
                             continue
-                        hit, entry = ray_cube_entry(columns[i] - xc, rows[j] - yc, matrix)
+                        hit, entry = ray_box_entry(columns[i] - xc, rows[j] - yc, matrix)
                         if hit:
                             image[j, i] = min(image[j, i], zc + entry)
                             stats["pixel_writes"] += 1

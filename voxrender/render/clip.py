@@ -15,23 +15,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["Clip", "parse_range"]
-
-
-def parse_range(text, name):
-    """``"a:b"`` (either side may be empty) to ``(a, b)`` with ``None`` for an open side.
-
-    >>> parse_range("10:", "--clip-x")
-    (10, None)
-    """
-    lo, sep, hi = str(text).partition(":")
-    try:
-        bounds = (int(lo) if lo.strip() else None, int(hi) if hi.strip() else None)
-    except ValueError:
-        bounds = None
-    if not sep or bounds is None or (None not in bounds and bounds[0] >= bounds[1]):
-        raise InputError(f"{name} {text!r} must be a:b with whole numbers a < b (either may be left out)")
-    return bounds
+__all__ = ["Clip"]
 
 
 @dataclass(frozen=True)
@@ -41,8 +25,9 @@ class Clip:
     Examples
     --------
     >>> clip = Clip(x=(2, None))
+    >>> from voxrender.view import View
     >>> keep, starts, ends = clip.apply_runs(np.array([0, 0]), np.array([0, 0]), np.array([0, 4]),
-    ...                                      np.array([1, 6]), np.eye(3), (1, 1, 8))
+    ...                                      np.array([1, 6]), View(scale=1.0), (1, 1, 8))
     >>> keep.tolist(), starts.tolist(), ends.tolist()
     ([False, True], [2, 4], [1, 6])
     """
@@ -54,16 +39,16 @@ class Clip:
 
     def __post_init__(self):
         if self.cut_depth is not None and not math.isfinite(self.cut_depth):
-            raise InputError("--cut-depth must be a finite depth in voxels")
+            raise InputError(f"{self.cut_depth} must be a finite depth in voxels", parameter="cut_depth")
 
     @property
     def active(self):
         return any(v is not None for v in (self.x, self.y, self.z, self.cut_depth))
 
-    def apply_runs(self, z, y, starts, ends, matrix, shape):
+    def apply_runs(self, z, y, starts, ends, view, shape):
         """Clip runs ``[starts, ends]`` of rows ``(z, y)``; return ``(keep, starts, ends)``.
 
-        ``matrix`` is the view rotation (for the cut plane) and ``shape = (nz, ny, nx)``.
+        ``view`` places the cut plane; ``shape = (nz, ny, nx)`` is the volume's.
         """
         starts = np.asarray(starts, dtype=np.int64)
         ends = np.asarray(ends, dtype=np.int64)
@@ -79,10 +64,10 @@ class Clip:
             if hi is not None:
                 ends = np.minimum(ends, hi - 1)
         if self.cut_depth is not None:
-            nz, ny, nx = shape
-            # Z' of a voxel centre is r20 (x - cx) + rest(y, z); keep Z' >= cut_depth.
-            r20, r21, r22 = matrix[2]
-            rest = r21 * (np.asarray(y) - (ny - 1) / 2) + r22 * (np.asarray(z) - (nz - 1) / 2)
+            nx = shape[2]
+            # Z' of a voxel centre is r20 (x - cx) + rest(y, z), rest being Z' at x = cx; keep Z' >= cut_depth.
+            r20 = view.matrix[2, 0]
+            rest = view.to_image((nx - 1) / 2, y, z, shape)[2]
             if abs(r20) < 1e-12:
                 keep &= rest >= self.cut_depth - 1e-9
             else:
@@ -93,9 +78,8 @@ class Clip:
                     ends = np.minimum(ends, np.floor(bound + 1e-9).astype(np.int64))
         return keep & (starts <= ends), starts, ends
 
-    def apply_mask(self, mask, matrix):
+    def apply_mask(self, mask, view):
         """The voxels of ``mask[z, y, x]`` that survive the clip, as a new mask (for references and tests)."""
-        nz, ny, nx = mask.shape
         z, y, x = np.indices(mask.shape)
         keep = mask.copy()
         for bounds, index in ((self.x, x), (self.y, y), (self.z, z)):
@@ -103,7 +87,5 @@ class Clip:
                 lo, hi = bounds
                 keep &= (index >= (lo if lo is not None else 0)) & (index < (hi if hi is not None else 1 << 62))
         if self.cut_depth is not None:
-            depth = (matrix[2, 0] * (x - (nx - 1) / 2) + matrix[2, 1] * (y - (ny - 1) / 2)
-                     + matrix[2, 2] * (z - (nz - 1) / 2))
-            keep &= depth >= self.cut_depth - 1e-9
+            keep &= view.to_image(x, y, z, mask.shape)[2] >= self.cut_depth - 1e-9
         return keep

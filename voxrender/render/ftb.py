@@ -27,10 +27,11 @@ depth image and the same statistics, MERGE cases included.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..view import View
 from .btf import back_to_front
 from .geometry import box_rows, ray_box_entry, row_spans
 
@@ -43,15 +44,21 @@ CASES = tuple(range(1, 9))
 class ScreenPlan:
     """What a front-to-back pass needs to know about a view (alpha and beta only)."""
 
-    matrix: np.ndarray
+    view: View                # the (alpha, beta, 0) view that is rendered
     shape: tuple
-    size: tuple
-    scale: float
     outer_is_z: bool          # slices are the outer loop (|cos alpha| >= |sin alpha|), else rows are
     outer_order: np.ndarray   # front to back
     inner_order: np.ndarray
     x_ascending: bool         # object rows are read with x ascending (front to back)
     mirror: bool              # the merge walks right to left in the picture: columns are mirrored
+
+    @property
+    def matrix(self):
+        return self.view.matrix
+
+    @property
+    def size(self):
+        return self.view.size
 
     def to_walk(self, first, last):
         """Pixel columns ``[first, last]`` to the walk's coordinates (and back: the map is its own inverse)."""
@@ -65,47 +72,41 @@ class ScreenPlan:
 
     def centres(self, z, y, starts, ends):
         """Image-space box centres ``(Xc, Yc, Zc)`` and half-lengths of runs ``[starts, ends]`` of rows (z, y)."""
-        nz, ny, nx = self.shape
-        p = np.stack(np.broadcast_arrays((starts + ends) / 2 - (nx - 1) / 2, np.asarray(y) - (ny - 1) / 2,
-                                         np.asarray(z) - (nz - 1) / 2)).astype(float)
-        xc, yc, zc = (self.matrix @ p.reshape(3, -1)).reshape((3,) + p.shape[1:])
+        xc, yc, zc = self.view.to_image((starts + ends) / 2, y, z, self.shape)
         return xc, yc, zc, (np.asarray(ends) - starts + 1) / 2
 
     def scanlines(self, yc, half_y=0.5, half_z=0.5):
         """First and last scanline a box centred at ``Y' = yc`` covers, clipped to the picture."""
-        first, last = box_rows(yc, half_y, half_z, self.matrix, self.scale, self.size[0])
+        first, last = box_rows(yc, half_y, half_z, self.view)
         return np.maximum(first, 0), np.minimum(last, self.size[0] - 1)
 
     def scanline_y(self, line):
-        return (line + 0.5 - self.size[0] / 2) / self.scale
+        return self.view.pixel_centres(0, line)[1]
 
     def spans(self, line, xc, yc, half_x, half_y=0.5, half_z=0.5):
         """Walk-coordinate span ``[first, last]`` of boxes on scanline ``line`` (empty: first > last)."""
-        first, last = row_spans(self.scanline_y(line) - yc, xc, half_x, half_y, half_z, self.matrix, self.scale,
-                                self.size[1])
+        first, last = row_spans(self.scanline_y(line) - yc, xc, half_x, half_y, half_z, self.view)
         return self.to_walk(first, last)
 
     def depth(self, line, walk_x, xc, yc, zc, half_x):
         """Depth where the ray of pixel (line, walk_x) enters the box."""
-        dx = (self.column(walk_x) + 0.5 - self.size[1] / 2) / self.scale - xc
-        _, entry = ray_box_entry(dx, self.scanline_y(line) - yc, self.matrix, half_x)
+        x, y = self.view.pixel_centres(self.column(walk_x), line)
+        _, entry = ray_box_entry(x - xc, y - yc, self.matrix, half_x)
         return zc + entry
 
 
 def plan_screen(segments, view):
     """The front-to-back plan for ``view`` (its gamma is ignored: it turns the pre-image afterwards)."""
-    from ..view import rotation_matrix
-
-    matrix = rotation_matrix(view.alpha, view.beta, 0.0)
+    flat = replace(view, gamma=0.0)
+    matrix = flat.matrix
     nz, ny, _ = segments.shape
     direction = matrix[2]
     outer_is_z = abs(matrix[1, 1]) >= abs(matrix[1, 2])
     z_order = back_to_front(nz, direction[2])[::-1]
     y_order = back_to_front(ny, direction[1])[::-1]
     x_ascending = direction[0] >= 0
-    return ScreenPlan(matrix, tuple(segments.shape), tuple(view.size), float(view.scale), outer_is_z,
-                      z_order if outer_is_z else y_order, y_order if outer_is_z else z_order, x_ascending,
-                      bool(x_ascending != (matrix[0, 0] >= 0)))
+    return ScreenPlan(flat, tuple(segments.shape), outer_is_z, z_order if outer_is_z else y_order,
+                      y_order if outer_is_z else z_order, x_ascending, bool(x_ascending != (matrix[0, 0] >= 0)))
 
 
 def object_box(segments, clip=None):
@@ -176,7 +177,7 @@ def _front_to_back_runs(segments, plan, clip):
     ends = np.asarray(segments.ends)[index].astype(np.int64)
     run_z, run_y = rows[owner] // ny, rows[owner] % ny
     if clip is not None and clip.active:
-        keep, starts, ends = clip.apply_runs(run_z, run_y, starts, ends, plan.matrix, segments.shape)
+        keep, starts, ends = clip.apply_runs(run_z, run_y, starts, ends, plan.view, segments.shape)
         owner, run_z, run_y, starts, ends = owner[keep], run_z[keep], run_y[keep], starts[keep], ends[keep]
     return slab[owner], owner, run_z, run_y, starts, ends
 

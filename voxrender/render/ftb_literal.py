@@ -119,7 +119,7 @@ def render_ftb_literal(segments, view, clip=None):
             if not plan.x_ascending:
                 starts, ends = starts[::-1], ends[::-1]
             if clip is not None and clip.active:
-                keep, starts, ends = clip.apply_runs(z, y, starts, ends, plan.matrix, segments.shape)
+                keep, starts, ends = clip.apply_runs(z, y, starts, ends, plan.view, segments.shape)
                 starts, ends = starts[keep], ends[keep]
             if not len(starts):
                 continue

@@ -1,31 +1,36 @@
 """Where the ray through a pixel centre meets a box of voxels: the geometry of the view contract.
 
 A run of voxels ``[s, e]`` in row ``(y, z)`` is the box ``[s - 1/2, e + 1/2] x [y - 1/2, y + 1/2] x
-[z - 1/2, z + 1/2]``; a voxel is the box of a run of one.  Every renderer paints with these functions,
-so that all of them agree with each other and with the contract to the last bit.
+[z - 1/2, z + 1/2]``; a voxel is the box of a run of one, and an octant's face a box with one half-extent 0.
+The mappings between object, image and pixels are the :class:`~voxrender.view.View`'s; this module adds
+what boxes need: the ray-box entry, the projection of boxes onto pixels (:func:`paint_boxes`) and, for the
+dynamic screen, the scanlines and spans a box covers.  Every renderer paints with these functions, so that
+all of them agree with each other and with the contract.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["EPS", "footprint", "ray_box_entry", "ray_cube_entry", "box_rows", "row_spans"]
+__all__ = ["EPS", "Fragments", "reach", "ray_box_entry", "paint_boxes", "box_rows", "row_spans"]
 
 # Pixel centres that fall exactly on a face belong to the (closed) box.
 EPS = 1e-9
 
 
-def footprint(matrix, scale):
-    """Half-extents ``(hx, hy)`` in pixels of a unit cube's projection, and the window side in pixels.
+def reach(matrix, half):
+    """Half-extents ``(rx, ry)`` in voxel units of the projection of boxes with half-extents ``half``.
 
-    >>> footprint(np.eye(3), 1.0)
-    (0.5, 0.5, 2, 2)
+    ``half`` is ``(3,)`` (one box) or ``(N, 3)`` (x, y, z per box).
+
+    >>> reach(np.eye(3), (0.5, 0.5, 0.5))
+    (np.float64(0.5), np.float64(0.5))
     """
-    hx = 0.5 * float(np.abs(matrix[0]).sum()) * scale
-    hy = 0.5 * float(np.abs(matrix[1]).sum()) * scale
-    return hx, hy, int(math.floor(2 * hx)) + 1, int(math.floor(2 * hy)) + 1
+    half = np.asarray(half, dtype=float)
+    return (np.abs(matrix[0]) * half).sum(axis=-1), (np.abs(matrix[1]) * half).sum(axis=-1)
 
 
 def ray_box_entry(dx, dy, matrix, half_x=0.5, half_y=0.5, half_z=0.5):
@@ -68,39 +73,105 @@ def ray_box_entry(dx, dy, matrix, half_x=0.5, half_y=0.5, half_z=0.5):
     return entry <= leave, entry
 
 
-def ray_cube_entry(dx, dy, matrix):
-    """:func:`ray_box_entry` for single voxels."""
-    return ray_box_entry(dx, dy, matrix)
+class Fragments(NamedTuple):
+    """What :func:`paint_boxes` found: one entry per (pixel, box) whose ray meets the box."""
+
+    pixels: np.ndarray     # flat index into the (H, W) picture
+    depths: np.ndarray     # Z' where the pixel's ray enters the box
+    owner: np.ndarray      # index of the box
+    scanlines: int         # (box, pixel row) pairs with at least one fragment
 
 
-def box_rows(yc, half_y, half_z, matrix, scale, height):
+def paint_boxes(view, shape, x, y, z, half=(0.5, 0.5, 0.5), chunk_pixels=4_000_000):
+    """Every pixel whose ray meets one of the boxes, with the depth where it enters the box.
+
+    Parameters
+    ----------
+    view : View
+        With ``scale`` set.
+    shape : (nz, ny, nx)
+        The volume the boxes live in (its centre is the contract's ``c``).
+    x, y, z : ndarray
+        Object-space box centres (voxel indices; half-integers for octants of even size).
+    half : (3,) or (N, 3) array
+        Half-extents along x, y, z: 1/2 for voxels; one of them 0 for octant faces.
+    chunk_pixels : int
+        At most about this many candidate pixels are tested at once, to bound memory.
+
+    Returns
+    -------
+    Fragments
+        ``pixels``, ``depths``, ``owner`` (index of the box) and ``scanlines``.
+
+    Examples
+    --------
+    >>> from voxrender.view import View
+    >>> found = paint_boxes(View(size=(4, 4), scale=1.0), (1, 1, 1), np.array([0]), np.array([0]), np.array([0]))
+    >>> found.pixels.tolist(), found.depths.round(6).tolist(), found.scanlines
+    ([5, 6, 9, 10], [-0.5, -0.5, -0.5, -0.5], 2)
+    """
+    x, y, z = np.broadcast_arrays(*(np.atleast_1d(np.asarray(c, dtype=float)) for c in (x, y, z)))
+    if not len(x):
+        return Fragments(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64), 0)
+    matrix = view.matrix
+    height, width = view.size
+    half = np.asarray(half, dtype=float)
+    reach_x, reach_y = (r * view.scale for r in reach(matrix, half))
+    kx = int(math.floor(2 * float(np.max(reach_x)))) + 1
+    ky = int(math.floor(2 * float(np.max(reach_y)))) + 1
+    per_chunk = max(1, chunk_pixels // (kx * ky))
+    parts, scanlines = [], 0
+    for start in range(0, len(x), per_chunk):
+        part = slice(start, start + per_chunk)
+        xc, yc, zc = view.to_image(x[part], y[part], z[part], shape)
+        column, row = view.pixel_index(xc, yc)
+        rx, ry = (r[part] if np.ndim(r) else r for r in (reach_x, reach_y))
+        i = np.ceil(column - rx - EPS).astype(np.int64)[:, None, None] + np.arange(kx)
+        j = np.ceil(row - ry - EPS).astype(np.int64)[:, None, None] + np.arange(ky)[:, None]
+        px, py = view.pixel_centres(i, j)
+        extents = [half[part, k, None, None] if half.ndim == 2 else float(half[k]) for k in range(3)]
+        hit, entry = ray_box_entry(px - xc[:, None, None], py - yc[:, None, None], matrix, *extents)
+        hit &= (i >= 0) & (i < width) & (j >= 0) & (j < height)
+        scanlines += int(hit.any(axis=2).sum())
+        parts.append(((np.broadcast_to(j, hit.shape) * width + np.broadcast_to(i, hit.shape))[hit],
+                      (entry + zc[:, None, None])[hit], np.nonzero(hit)[0] + start))
+    pixels, depths, owner = (np.concatenate(p) for p in zip(*parts))
+    return Fragments(pixels, depths, owner, scanlines)
+
+
+def box_rows(yc, half_y, half_z, view):
     """First and last scanline (pixel row) whose centre ray can meet a box centred at ``Y' = yc``.
 
-    Needs ``matrix[1, 0] == 0`` (alpha and beta only, the paper's Theorem 1), so that ``Y'``
-    does not change along object x.
+    Needs ``view.matrix[1, 0] == 0`` (alpha and beta only, the paper's Theorem 1), so that ``Y'``
+    does not change along object x.  Rows outside the picture are not clipped.
 
-    >>> box_rows(np.array([0.0]), 0.5, 0.5, np.eye(3), 1.0, 4)
+    >>> from voxrender.view import View
+    >>> box_rows(np.array([0.0]), 0.5, 0.5, View(size=(4, 4), scale=1.0))
     (array([1]), array([2]))
     """
-    reach = abs(matrix[1, 1]) * half_y + abs(matrix[1, 2]) * half_z + EPS
-    first = np.ceil((yc - reach) * scale + height / 2 - 0.5 - EPS).astype(np.int64)
-    last = np.floor((yc + reach) * scale + height / 2 - 0.5 + EPS).astype(np.int64)
-    return first, last
+    matrix = view.matrix
+    extent = abs(matrix[1, 1]) * half_y + abs(matrix[1, 2]) * half_z + EPS
+    _, top = view.pixel_index(0.0, yc - extent)
+    _, bottom = view.pixel_index(0.0, yc + extent)
+    return np.ceil(top - EPS).astype(np.int64), np.floor(bottom + EPS).astype(np.int64)
 
 
-def row_spans(dy, xc, half_x, half_y, half_z, matrix, scale, width):
+def row_spans(dy, xc, half_x, half_y, half_z, view):
     """First and last pixel column of a box's projection on a scanline ``dy = Y' - Yc`` away from its centre.
 
-    With ``matrix[1, 0] == 0`` a box's projection is the parallelogram of its y and z edges
+    With ``view.matrix[1, 0] == 0`` a box's projection is the parallelogram of its y and z edges
     swept along the horizontal projection of its x edge (the paper's Fig. 8); on one scanline
-    that is an interval, computed here in closed form.  Columns outside ``[0, width)`` are
+    that is an interval, computed here in closed form.  Columns outside the picture are
     clipped; an empty span has ``first > last``.
 
-    >>> row_spans(np.array([0.0]), np.array([0.0]), np.array([1.5]), 0.5, 0.5, np.eye(3), 1.0, 8)
+    >>> from voxrender.view import View
+    >>> row_spans(np.array([0.0]), np.array([0.0]), np.array([1.5]), 0.5, 0.5, View(size=(8, 8), scale=1.0))
     (array([2]), array([5]))
     """
     # Points of the (y, z) cross-section on the scanline: (a, b) = dy (R11, R12) + t (-R12, R11); X' moves by
     # t * kappa along it.  |a| <= half_y and |b| <= half_z bound t (a 2-D slab test).
+    matrix = view.matrix
+    width = view.size[1]
     r11, r12 = matrix[1, 1], matrix[1, 2]
     kappa = matrix[0, 2] * r11 - matrix[0, 1] * r12
     low = np.full(np.shape(dy), -np.inf)
@@ -115,9 +186,8 @@ def row_spans(dy, xc, half_x, half_y, half_z, matrix, scale, width):
     empty = low > high
     low, high = np.where(empty, 0.0, low), np.where(empty, 0.0, high)
     spread = np.abs(matrix[0, 0]) * (half_x + EPS)
-    left = xc + np.minimum(kappa * low, kappa * high) - spread
-    right = xc + np.maximum(kappa * low, kappa * high) + spread
-    first = np.ceil(left * scale + width / 2 - 0.5 - EPS).astype(np.int64)
-    last = np.floor(right * scale + width / 2 - 0.5 + EPS).astype(np.int64)
-    first, last = np.maximum(first, 0), np.minimum(last, width - 1)
+    left, _ = view.pixel_index(xc + np.minimum(kappa * low, kappa * high) - spread, 0.0)
+    right, _ = view.pixel_index(xc + np.maximum(kappa * low, kappa * high) + spread, 0.0)
+    first = np.maximum(np.ceil(left - EPS).astype(np.int64), 0)
+    last = np.minimum(np.floor(right + EPS).astype(np.int64), width - 1)
     return np.where(empty, 1, first), np.where(empty, 0, last)

@@ -23,9 +23,10 @@ import numpy as np
 
 from .. import octree
 from ..view import vpn_from_angles
-from .geometry import ray_box_entry
+from .geometry import paint_boxes
 
-__all__ = ["render_octree_btf", "render_octree_btf_literal", "front_to_back_children", "visible_axes"]
+__all__ = ["render_octree_btf", "render_octree_btf_literal", "front_to_back_children", "visible_axes",
+           "paint_faces", "region_octree"]
 
 
 def visible_axes(vpn):
@@ -55,44 +56,20 @@ def _face_geometry(tree, nodes, axis, side):
     return centre, half
 
 
-def _paint_faces(tree, nodes, axis, side, view, shape, chunk_pixels=4_000_000):
-    """(pixels, depths, node) of every pixel whose ray meets one of the given faces, and scanline counts."""
-    matrix = view.matrix
-    height, width = view.size
-    scale = view.scale
-    nz, ny, nx = shape
-    volume_centre = np.array([(nx - 1) / 2, (ny - 1) / 2, (nz - 1) / 2])
-    parts, scanlines = [], 0
-    if not len(nodes):
-        return np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64), 0
+def paint_faces(tree, nodes, axis, side, view, shape):
+    """:func:`~voxrender.render.geometry.paint_boxes` for the faces of ``nodes`` on ``axis`` (``side`` +1 or -1);
+    ``owner`` holds node numbers."""
     centre, half = _face_geometry(tree, nodes, axis, side)
-    reach_x = (np.abs(matrix[0]) * half).sum(axis=1) * scale
-    reach_y = (np.abs(matrix[1]) * half).sum(axis=1) * scale
-    kx, ky = int(np.floor(2 * reach_x.max())) + 1, int(np.floor(2 * reach_y.max())) + 1
-    per_chunk = max(1, chunk_pixels // (kx * ky))
-    for start in range(0, len(nodes), per_chunk):
-        c, h = centre[start:start + per_chunk] - volume_centre, half[start:start + per_chunk]
-        xc, yc, zc = (matrix[k, 0] * c[:, 0] + matrix[k, 1] * c[:, 1] + matrix[k, 2] * c[:, 2] for k in range(3))
-        rx, ry = reach_x[start:start + per_chunk], reach_y[start:start + per_chunk]
-        i = np.ceil(xc * scale + width / 2 - 0.5 - rx - 1e-9).astype(np.int64)[:, None, None] + np.arange(kx)
-        j = np.ceil(yc * scale + height / 2 - 0.5 - ry - 1e-9).astype(np.int64)[:, None, None] + \
-            np.arange(ky)[:, None]
-        dx = (i + 0.5 - width / 2) / scale - xc[:, None, None]
-        dy = (j + 0.5 - height / 2) / scale - yc[:, None, None]
-        hit, entry = ray_box_entry(dx, dy, matrix, h[:, 0, None, None], h[:, 1, None, None], h[:, 2, None, None])
-        hit &= (i >= 0) & (i < width) & (j >= 0) & (j < height)
-        scanlines += int(hit.any(axis=2).sum())
-        owner = np.nonzero(hit)[0]
-        parts.append(((np.broadcast_to(j, hit.shape) * width + np.broadcast_to(i, hit.shape))[hit],
-                      (entry + zc[:, None, None])[hit], nodes[start:start + per_chunk][owner]))
-    pixels, depths, owners = (np.concatenate(p) for p in zip(*parts))
-    return pixels, depths, owners, scanlines
+    found = paint_boxes(view, shape, centre[:, 0], centre[:, 1], centre[:, 2], half)
+    return found._replace(owner=np.asarray(nodes)[found.owner])
 
 
-def _tree(segments, view, clip):
+def region_octree(segments, view, clip=None, tree=None):
+    """The region octree to traverse: ``tree`` (the object's, built by the caller and kept), or one built now;
+    with active clip limits, the octree of the clipped object."""
     if clip is not None and clip.active:
-        return octree.build(clip.apply_mask(segments.to_mask(), view.matrix))
-    return segments.octree()
+        return octree.build(clip.apply_mask(segments.to_mask(), view))
+    return tree if tree is not None else octree.build(segments.to_mask())
 
 
 def _new_stats(tree):
@@ -100,9 +77,9 @@ def _new_stats(tree):
             "scanlines_accumulated": 0, "pixels_accumulated": 0, "pixel_writes": 0}
 
 
-def render_octree_btf(segments, view, progress=None, clip=None):
+def render_octree_btf(segments, view, progress=None, clip=None, tree=None):
     """Meagher's back-to-front octree display, vectorised over the black octants of each size."""
-    tree = _tree(segments, view, clip)
+    tree = region_octree(segments, view, clip, tree)
     vpn = vpn_from_angles(view.alpha, view.beta, view.gamma)
     height, width = view.size
     image = np.full(height * width, np.inf)
@@ -114,7 +91,7 @@ def render_octree_btf(segments, view, progress=None, clip=None):
     for level in np.unique(tree.level[black]):
         nodes = black[tree.level[black] == level]
         for axis, side in visible_axes(vpn):
-            pixels, depths, _, scanlines = _paint_faces(tree, nodes, axis, side, view, segments.shape)
+            pixels, depths, _, scanlines = paint_faces(tree, nodes, axis, side, view, segments.shape)
             np.minimum.at(image, pixels, depths)
             stats["black_faces"] += len(nodes)
             stats["scanlines_accumulated"] += scanlines
@@ -124,9 +101,9 @@ def render_octree_btf(segments, view, progress=None, clip=None):
     return image.reshape(height, width).astype(np.float32), stats
 
 
-def render_octree_btf_literal(segments, view, clip=None):
+def render_octree_btf_literal(segments, view, clip=None, tree=None):
     """The oracle: recursive back-to-front traversal, black octants' faces painted one by one, overwriting."""
-    tree = _tree(segments, view, clip)
+    tree = region_octree(segments, view, clip, tree)
     vpn = vpn_from_angles(view.alpha, view.beta, view.gamma)
     height, width = view.size
     image = np.full(height * width, np.inf)
@@ -139,7 +116,7 @@ def render_octree_btf_literal(segments, view, clip=None):
         stats[f"{names[color]}_visited"] += 1
         if color == octree.BLACK:
             for axis, side in visible_axes(vpn):
-                pixels, depths, _, scanlines = _paint_faces(tree, np.array([node]), axis, side, view, segments.shape)
+                pixels, depths, _, scanlines = paint_faces(tree, np.array([node]), axis, side, view, segments.shape)
                 for pixel, depth in zip(pixels, depths):   # painted in order: later (nearer) overwrites,
                     image[pixel] = min(image[pixel], depth)  # but a ray along a shared edge keeps the nearer
                 stats["black_faces"] += 1

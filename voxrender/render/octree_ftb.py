@@ -37,7 +37,7 @@ from scipy.sparse.csgraph import breadth_first_order
 
 from .. import octree
 from ..view import vpn_from_angles
-from .octree_btf import _paint_faces, _tree, front_to_back_children, visible_axes
+from .octree_btf import front_to_back_children, paint_faces, region_octree, visible_axes
 
 __all__ = ["render_octree_ftb"]
 
@@ -106,7 +106,7 @@ def new_stats():
     return stats
 
 
-def render_octree_ftb(segments, view, progress=None, clip=None):
+def render_octree_ftb(segments, view, progress=None, clip=None, tree=None):
     """Front-to-back octree display with blocking quadtrees (Zhao and Davis), vectorised.
 
     Returns the depth image of the view contract and the statistics of the literal version
@@ -122,7 +122,7 @@ def render_octree_ftb(segments, view, progress=None, clip=None):
     >>> stats["black_visited"], stats["black_faces"], bool(np.isfinite(depth).any())
     (1, 3, True)
     """
-    tree = _tree(segments, view, clip)
+    tree = region_octree(segments, view, clip, tree)
     vpn = vpn_from_angles(view.alpha, view.beta, view.gamma)
     axes = visible_axes(vpn)
     order = np.array(front_to_back_children(vpn))
@@ -148,7 +148,7 @@ def render_octree_ftb(segments, view, progress=None, clip=None):
             leaves = nodes[black & (face_open & (1 << i) != 0)]
             if len(leaves):
                 started = time.perf_counter()
-                pixels, depths, _, scanlines = _paint_faces(tree, leaves, axis, side, view, segments.shape)
+                pixels, depths, _, scanlines = paint_faces(tree, leaves, axis, side, view, segments.shape)
                 np.minimum.at(image, pixels, depths)          # the nearest where two faces share an edge
                 stats["black_seconds"] += time.perf_counter() - started
                 stats["black_faces"] += len(leaves)

@@ -29,7 +29,7 @@ import numpy as np
 
 from .. import octree
 from ..view import vpn_from_angles
-from .octree_btf import _paint_faces, _tree, front_to_back_children, visible_axes
+from .octree_btf import front_to_back_children, paint_faces, region_octree, visible_axes
 from .octree_ftb import new_stats
 
 __all__ = ["render_octree_ftb_literal", "BlockingBitmap", "QUAD_TAB", "ind_tab"]
@@ -81,14 +81,14 @@ class BlockingBitmap:
         self.bits[index >> 2] = (self.bits[index >> 2] & ~(3 << shift) & 0xFF) | (color << shift)
 
 
-def render_octree_ftb_literal(segments, view, clip=None, arrivals=None):
+def render_octree_ftb_literal(segments, view, clip=None, arrivals=None, tree=None):
     """Front-to-back octree display with blocking bitmaps (Zhao and Davis, Sec. 4), recursively.
 
     Returns the depth image and Table II/III statistics: octants visited and blocked by
     colour, black faces scan-converted, scanlines and pixels accumulated, pixels painted.
     ``arrivals``, a dict, receives for every visited node the bitmap value per axis it found.
     """
-    tree = _tree(segments, view, clip)
+    tree = region_octree(segments, view, clip, tree)
     vpn = vpn_from_angles(view.alpha, view.beta, view.gamma)
     axes = visible_axes(vpn)
     order = front_to_back_children(vpn)
@@ -99,7 +99,7 @@ def render_octree_ftb_literal(segments, view, clip=None, arrivals=None):
     stats["bitmap_bytes"] = sum(len(b.bits) for b in bitmaps.values())
 
     def scan_convert(node, axis, side):
-        pixels, depths, _, scanlines = _paint_faces(tree, np.array([node]), axis, side, view, segments.shape)
+        pixels, depths, _, scanlines = paint_faces(tree, np.array([node]), axis, side, view, segments.shape)
         stats["black_faces"] += 1
         stats["scanlines_accumulated"] += scanlines
         stats["pixels_accumulated"] += len(pixels)

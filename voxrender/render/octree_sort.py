@@ -27,8 +27,8 @@ import numpy as np
 
 from .. import octree
 from ..view import vpn_from_angles
-from .btf import _centres, paint_voxels
-from .geometry import footprint, ray_cube_entry
+from .geometry import EPS, paint_boxes, ray_box_entry, reach
+from .octree_btf import region_octree
 
 __all__ = ["recode", "recode_literal", "voxel_codes", "decode", "visible_faces", "render_octree_sort",
            "render_octree_sort_literal", "render_zbuffer", "render_zbuffer_literal"]
@@ -103,24 +103,15 @@ def visible_faces(vpn):
     return [names[axis][0 if vpn[axis] > 0 else 1] for axis in range(3) if vpn[axis] != 0]
 
 
-def _voxels(segments, view, clip):
-    if clip is not None and clip.active:
-        tree = octree.build(clip.apply_mask(segments.to_mask(), view.matrix))
-    else:
-        tree = segments.octree()
+def _voxels(segments, view, clip, tree):
+    tree = region_octree(segments, view, clip, tree)
     return tree, voxel_codes(tree)
 
 
-def _candidates(view, shape, xyz, chunk=200_000):
-    """(pixel, depth, voxel index) of every voxel's cube, in chunks to bound memory."""
-    parts = []
-    for start in range(0, len(xyz), chunk):
-        x, y, z = xyz[start:start + chunk].T
-        pixels, depths, owner = paint_voxels(view.matrix, view, shape, z, y, x)
-        parts.append((pixels, depths, owner + start))
-    if not parts:
-        return np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64)
-    return tuple(np.concatenate(p) for p in zip(*parts))
+def _candidates(view, shape, xyz):
+    """(pixel, depth, voxel index) of every voxel's cube."""
+    pixels, depths, owner, _ = paint_boxes(view, shape, *xyz.T)
+    return pixels, depths, owner
 
 
 def _stats(tree, codes, vpn, pixels, written):
@@ -129,14 +120,14 @@ def _stats(tree, codes, vpn, pixels, written):
             "pixel_writes": int(written)}
 
 
-def render_octree_sort(segments, view, progress=None, clip=None, order="ftb"):
+def render_octree_sort(segments, view, progress=None, clip=None, order="ftb", tree=None):
     """Sorted linear-octree display, vectorised: recode, ``np.argsort`` on Q', paint in order.
 
     ``order="ftb"``: each pixel keeps its first write; ``"painter"``: back to front, each
     write replaces the last.  Statistics: voxels, linear-octree codes, faces drawn
     (Table 3), fragments (pixel-cube hits) and pixel writes.
     """
-    tree, codes = _voxels(segments, view, clip)
+    tree, codes = _voxels(segments, view, clip, tree)
     vpn = vpn_from_angles(view.alpha, view.beta, view.gamma)
     rank = np.empty(len(codes), np.int64)
     rank[np.argsort(recode(codes, tree.n, vpn), kind="stable")] = np.arange(len(codes))
@@ -152,14 +143,14 @@ def render_octree_sort(segments, view, progress=None, clip=None, order="ftb"):
     return image.reshape(height, width).astype(np.float32), _stats(tree, codes, vpn, pixels, written)
 
 
-def render_zbuffer(segments, view, progress=None, clip=None, count_writes=True):
+def render_zbuffer(segments, view, progress=None, clip=None, count_writes=True, tree=None):
     """The unsorted z-buffer with back-face culling, vectorised; ``pixel_writes`` counts depth tests passed.
 
     Counting the passed tests needs a sort of all fragments that the z-buffer itself does not:
     ``count_writes=False`` skips it (``pixel_writes`` is then ``None``), so that timings compare the
     z-buffer's own work.
     """
-    tree, codes = _voxels(segments, view, clip)
+    tree, codes = _voxels(segments, view, clip, tree)
     vpn = vpn_from_angles(view.alpha, view.beta, view.gamma)
     pixels, depths, owner = _candidates(view, tuple(segments.shape), decode(codes, tree.n))
     height, width = view.size
@@ -183,21 +174,20 @@ def _paint_literal(view, shape, xyz, visit):
     """Call ``visit(pixel, depth)`` for every pixel each voxel's cube covers, voxel by voxel."""
     matrix = view.matrix
     height, width = view.size
-    hx, hy, _, _ = footprint(matrix, view.scale)
-    columns = (np.arange(width) + 0.5 - width / 2) / view.scale
-    rows = (np.arange(height) + 0.5 - height / 2) / view.scale
+    rx, ry = reach(matrix, (0.5, 0.5, 0.5))
+    columns, rows = view.pixel_centres()
     for x, y, z in xyz:
-        xc, yc, zc = (float(c[0]) for c in _centres(matrix, shape, np.array([z]), np.array([y]), np.array([x])))
-        for j in np.flatnonzero(np.abs(rows - yc) * view.scale <= hy + 1e-9):
-            for i in np.flatnonzero(np.abs(columns - xc) * view.scale <= hx + 1e-9):
-                hit, entry = ray_cube_entry(columns[i] - xc, rows[j] - yc, matrix)
+        xc, yc, zc = (float(c) for c in view.to_image(x, y, z, shape))
+        for j in np.flatnonzero(np.abs(rows - yc) <= ry + EPS):
+            for i in np.flatnonzero(np.abs(columns - xc) <= rx + EPS):
+                hit, entry = ray_box_entry(columns[i] - xc, rows[j] - yc, matrix)
                 if hit:
                     visit(j * width + i, zc + entry)
 
 
-def render_octree_sort_literal(segments, view, clip=None, order="ftb"):
+def render_octree_sort_literal(segments, view, clip=None, order="ftb", tree=None):
     """The oracle: codes broken and recoded one by one, Python's sort, voxels painted one at a time."""
-    tree, _ = _voxels(segments, view, clip)
+    tree, _ = _voxels(segments, view, clip, tree)
     n = tree.n
     vpn = vpn_from_angles(view.alpha, view.beta, view.gamma)
     codes = []
@@ -228,9 +218,9 @@ def render_octree_sort_literal(segments, view, clip=None, order="ftb"):
     return image.reshape(height, width).astype(np.float32), stats
 
 
-def render_zbuffer_literal(segments, view, clip=None):
+def render_zbuffer_literal(segments, view, clip=None, tree=None):
     """The oracle: voxels in code order, every fragment depth-tested."""
-    tree, codes = _voxels(segments, view, clip)
+    tree, codes = _voxels(segments, view, clip, tree)
     vpn = vpn_from_angles(view.alpha, view.beta, view.gamma)
     height, width = view.size
     image = np.full(height * width, np.inf)

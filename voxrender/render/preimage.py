@@ -5,21 +5,18 @@ about the view axis.  A method that needs object rows parallel to scanlines
 (Theorem 1) renders the pre-image of (alpha, beta, 0), supersampled, and the
 pre-image is turned by gamma.  Depth does not change under that turn.
 
-When the renderer can return its item buffer (which box lit each pre-image
-pixel), each final pixel re-evaluates the ray-box entry of the boxes that lit
-the 3 x 3 pre-image pixels around its rotated centre and keeps the nearest hit:
+The renderer returns its item buffer (which box lit each pre-image pixel);
+each final pixel re-evaluates the ray-box entry of the boxes that lit the
+3 x 3 pre-image pixels around its rotated centre and keeps the nearest hit:
 the depth is then exact wherever the visible box is among those nine.
-Otherwise the nearest pre-image pixel is taken (:func:`voxrender.shade.rotate_depth`).
 """
 
 from __future__ import annotations
 
-import inspect
 
 import numpy as np
 
-from ..shade import rotate_depth
-from ..view import View, pixel_centres, rotation_matrix
+from ..view import View
 from .geometry import ray_box_entry
 
 __all__ = ["render_preimage", "preimage_view", "turn_items"]
@@ -48,18 +45,19 @@ def preimage_view(view, supersample):
 
 
 def turn_items(owner, boxes, shape, view, pre_view):
-    """Final depth image of ``view`` from a pre-image's item buffer (see the module docstring)."""
+    """Final depth image of ``view`` from a pre-image's item buffer (see the module docstring).
+
+    ``owner`` is the ``(Hp, Wp)`` index of the box that lit each pre-image pixel (-1: none); ``boxes`` holds
+    per box its object-space centre x, y, z and half-extent along x (a run of voxels).
+    """
     height, width = view.size
     pre_height, pre_width = pre_view.size
-    xs, ys = pixel_centres(view)
-    big_x, big_y = np.meshgrid(xs, ys)
+    big_x, big_y = np.meshgrid(*view.pixel_centres())
     g = np.radians(view.gamma)
     pre_x = np.cos(g) * big_x + np.sin(g) * big_y      # Rz(-gamma) (X', Y')
     pre_y = -np.sin(g) * big_x + np.cos(g) * big_y
-    u = np.rint(pre_x * pre_view.scale + pre_width / 2 - 0.5).astype(np.int64)
-    v = np.rint(pre_y * pre_view.scale + pre_height / 2 - 0.5).astype(np.int64)
-    matrix = rotation_matrix(view.alpha, view.beta, 0.0)
-    centre = (np.array(shape[::-1]) - 1) / 2
+    u, v = (np.rint(c).astype(np.int64) for c in pre_view.pixel_index(pre_x, pre_y))
+    matrix = pre_view.matrix
     depth = np.full((height, width), np.inf)
     for dv in (-1, 0, 1):
         for du in (-1, 0, 1):
@@ -69,16 +67,36 @@ def turn_items(owner, boxes, shape, view, pre_view):
             who[inside] = owner[row[inside], col[inside]]
             has = who >= 0
             box = boxes[who[has]]
-            xc, yc, zc = matrix @ (box[:, :3] - centre).T
+            xc, yc, zc = pre_view.to_image(box[:, 0], box[:, 1], box[:, 2], shape)
             hit, entry = ray_box_entry(pre_x[has] - xc, pre_y[has] - yc, matrix, box[:, 3])
             candidate = np.where(hit, zc + entry, np.inf)
             depth[has] = np.minimum(depth[has], candidate)
     return depth.astype(np.float32)
 
 
-def render_preimage(renderer, segments, view, supersample=2, progress=None, clip=None):
+def render_preimage(renderer, segments, view, supersample=2, progress=None, clip=None, **options):
     """Render ``view`` as the pre-image of (alpha, beta) at ``supersample`` times the scale, turned by gamma.
 
+    Parameters
+    ----------
+    renderer : callable
+        A renderer that takes ``items=True`` and then also returns its item buffer ``(owner, boxes)``.
+    segments : Segments
+    view : View
+        With ``scale`` set.
+    supersample : int
+        The pre-image's scale over the picture's.
+    progress, clip, **options
+        Passed to ``renderer``.
+
+    Returns
+    -------
+    depth : ndarray of float32, (H, W)
+    stats : dict
+        The renderer's, with ``preimage_size`` and ``supersample``.
+
+    Examples
+    --------
     >>> from voxrender.segments import encode
     >>> from voxrender.render.ftb import render_ftb
     >>> depth, stats = render_preimage(render_ftb, encode(np.ones((2, 2, 2), bool)),
@@ -87,10 +105,6 @@ def render_preimage(renderer, segments, view, supersample=2, progress=None, clip
     (4, 2)
     """
     pre_view = preimage_view(view, supersample)
-    if "items" in inspect.signature(renderer).parameters:
-        pre, stats, (owner, boxes) = renderer(segments, pre_view, progress=progress, clip=clip, items=True)
-        depth = turn_items(owner, boxes, segments.shape, view, pre_view)
-    else:
-        pre, stats = renderer(segments, pre_view, progress=progress, clip=clip)
-        depth = rotate_depth(pre, view.gamma, view.size, pre_view.scale, view.scale)
+    pre, stats, (owner, boxes) = renderer(segments, pre_view, progress=progress, clip=clip, items=True, **options)
+    depth = turn_items(owner, boxes, segments.shape, view, pre_view)
     return depth, dict(stats, preimage_size=list(pre_view.size), supersample=supersample)

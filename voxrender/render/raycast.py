@@ -19,7 +19,6 @@ import time
 import numpy as np
 
 from ..lines import Stepper
-from ..view import pixel_centres
 from .geometry import ray_box_entry
 
 __all__ = ["render_raycast", "CONNECTIVITIES", "proximity_band"]
@@ -54,10 +53,8 @@ def _cast(mask, band, view, connectivity, progress=None):
     nz, ny, nx = mask.shape
     matrix = view.matrix
     height, width = view.size
-    xs, ys = pixel_centres(view)
-    big_x, big_y = np.meshgrid(xs, ys)
-    centre = (np.array([nx, ny, nz]) - 1) / 2
-    origins = centre + big_x.reshape(-1, 1) * matrix[0] + big_y.reshape(-1, 1) * matrix[1]
+    big_x, big_y = np.meshgrid(*view.pixel_centres())
+    origins = np.stack(view.to_object(big_x.ravel(), big_y.ravel(), 0.0, mask.shape), axis=1)
     direction = np.where(np.abs(matrix[2]) < 1e-12, 1e-12, matrix[2])
     # Clip every ray to the volume's box of cubes.
     low, high = -0.5 - origins, np.array([nx, ny, nz]) - 0.5 - origins
@@ -154,10 +151,10 @@ def render_raycast(segments, view, progress=None, clip=None, connectivity="adapt
     if connectivity not in CONNECTIVITIES:
         from ..errors import InputError
 
-        raise InputError(f"--connectivity {connectivity!r}: choose 6, 26 or adaptive")
+        raise InputError(f"{connectivity!r}: choose 6, 26 or adaptive", parameter="connectivity")
     mask = segments.to_mask()
     if clip is not None and clip.active:
-        mask = clip.apply_mask(mask, view.matrix)
+        mask = clip.apply_mask(mask, view)
     band = proximity_band(mask) if connectivity == "adaptive" else None
     hit_voxel, steps, iterations = _cast(mask, band, view, connectivity, progress)
     depth = _depth(hit_voxel, view, mask.shape)
@@ -193,9 +190,9 @@ def _depth(hit_voxel, view, shape):
     depth = np.full(height * width, np.inf)
     hit = np.flatnonzero(hit_voxel[:, 0] >= 0)
     if len(hit):
-        centres = matrix @ (hit_voxel[hit] - (np.array([nx, ny, nz]) - 1) / 2).T
-        xs, ys = pixel_centres(view)
+        xc, yc, zc = view.to_image(*hit_voxel[hit].T, shape)
         rows, columns = np.divmod(hit, width)
-        _, entry = ray_box_entry(xs[columns] - centres[0], ys[rows] - centres[1], matrix)
-        depth[hit] = centres[2] + entry
+        xs, ys = view.pixel_centres(columns, rows)
+        _, entry = ray_box_entry(xs - xc, ys - yc, matrix)
+        depth[hit] = zc + entry
     return depth.reshape(height, width).astype(np.float32)

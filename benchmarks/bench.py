@@ -1,6 +1,6 @@
 """The benchmark behind ``make benchmark``: medians of repeated runs, ratios measured in the same run.
 
-    python -m voxrender.bench [--repeat 5] [--data ../shared/data] [--out benchmark-results]
+    python -m benchmarks.bench [--repeat 5] [--data ../shared/data] [--out benchmark-results]
 
 It measures, on ``vhf_head`` at 300 HU (512 x 512 pictures at scale 1):
 
@@ -40,9 +40,10 @@ from pathlib import Path
 import click
 import numpy as np
 
-from . import io, prep, segments
-from .render import DEFAULT_METHOD, METHODS, render
-from .view import View
+from voxrender import io, prep, segments
+from voxrender.pipeline import Encoded
+from voxrender.render import DEFAULT_METHOD, METHODS, render
+from voxrender.view import View
 
 THRESHOLD = 300.0        # bone: a thin, convoluted object (the issue's case)
 SKIN_THRESHOLD = -300.0  # skin: the whole head, a solid, nearly convex object (the paper's kind of case)
@@ -59,6 +60,13 @@ def timed_methods():
     return [m for m in METHODS if m not in OWN_SECTION]
 
 
+def rendered(obj, view, method, **options):
+    """``render`` of an :class:`Encoded` object; octree methods get the octree kept with it (built once, as
+    the papers start from the octree)."""
+    tree = obj.octree() if METHODS[method].octree else None
+    return render(obj.segments, view, method, tree=tree, **options)
+
+
 def median_seconds(work, repeat):
     """Median wall time of ``repeat`` calls of ``work()``, and the last result."""
     times, result = [], None
@@ -72,7 +80,7 @@ def median_seconds(work, repeat):
 def bench_encode(volume, repeat):
     seconds, encoded = median_seconds(lambda: segments.encode(prep.binarize(volume, THRESHOLD)[0]), repeat)
     return {"threshold_and_encode_s": seconds, "voxels": encoded.voxel_count, "segments": encoded.segment_count,
-            "grid_xyz": list(encoded.shape[::-1])}, encoded
+            "grid_xyz": list(encoded.shape[::-1])}, Encoded(encoded)
 
 
 def bench_views(encoded, repeat, size=512, scale=1.0, peer=None, views=PAPER_VIEWS + RANDOM_VIEWS):
@@ -83,7 +91,7 @@ def bench_views(encoded, repeat, size=512, scale=1.0, peer=None, views=PAPER_VIE
         row = {"alpha": alpha, "beta": beta, "seconds": {}, "stats": {}}
         for method in timed_methods():
             options = {"count_writes": False} if method == "zbuffer" else {}  # time its work, not our counting
-            seconds, image = median_seconds(lambda: render(encoded, view, method, **options), repeat)
+            seconds, image = median_seconds(lambda: rendered(encoded, view, method, **options), repeat)
             row["seconds"][method] = seconds
             row["stats"][method] = image.stats
         if peer is not None:
@@ -181,11 +189,11 @@ def bench_scaling(repeat, sizes=SCALING_SIZES, methods=SCALING_METHODS):
     for kind in ("sphere", "gyroid"):
         rows = []
         for n in sizes:
-            encoded = segments.encode(phantom(kind, n))
+            encoded = Encoded(segments.encode(phantom(kind, n)))
             view = View(30.0, 10.0, 0.0, (n, n), 1.0)
-            row = {"n": n, "voxels": encoded.voxel_count}
+            row = {"n": n, "voxels": encoded.segments.voxel_count}
             for method in methods:
-                row[method] = median_seconds(lambda: render(encoded, view, method), repeat)[0]
+                row[method] = median_seconds(lambda: rendered(encoded, view, method), repeat)[0]
             rows.append(row)
         exponents = {method: float(np.polyfit(np.log(sizes), np.log([r[method] for r in rows]), 1)[0])
                      for method in methods}
@@ -216,7 +224,7 @@ def thin_shell(n=128, radius=50.0):
 
 def bench_raycast(repeat, cases):
     """Steps, time, leaks and misses of 6-, 26- and adaptive rays (Cohen-Or and Kaufman's trade-off)."""
-    from .render.raycast import render_raycast
+    from voxrender.render.raycast import render_raycast
 
     result = {}
     for name, (encoded, view) in cases.items():
@@ -235,18 +243,18 @@ def bench_raycast(repeat, cases):
 
 def bench_batch(path, views=36, size=512, separate=True):
     """A turntable of ``views`` pictures: one batch with 1 and 2 workers against separate render commands."""
-    from .batch import items_from, parse_views, run_batch, RenderOptions
-    from .pipeline import PrepOptions, ReadOptions
+    from voxrender.batch import Patterns, items_from, parse_views, run_batch
+    from voxrender.picture import RenderOptions
+    from voxrender.pipeline import PrepOptions, ReadOptions
 
     result = {"views": views, "size": size}
     turn = parse_views(turntable_count=views)
     with tempfile.TemporaryDirectory() as folder:
         for jobs in (1, 2):
-            items = items_from([str(path)], [], ReadOptions(), PrepOptions(threshold=THRESHOLD), DEFAULT_METHOD,
-                               turn, "{name}/{view}.png")
+            items = items_from([str(path)], [], ReadOptions(), PrepOptions(threshold=THRESHOLD),
+                               RenderOptions(size=(size, size)), turn, Patterns())
             started = time.perf_counter()
-            rows = run_batch(items, f"{folder}/jobs{jobs}", RenderOptions(size=(size, size)), jobs=jobs,
-                             cache_dir=f"{folder}/cache{jobs}")
+            rows = run_batch(items, f"{folder}/jobs{jobs}", jobs=jobs, cache_dir=f"{folder}/cache{jobs}")
             seconds = time.perf_counter() - started
             assert all(r["status"] == "ok" for r in rows)
             result[f"batch_{jobs}_s"] = seconds
@@ -266,17 +274,17 @@ def bench_batch(path, views=36, size=512, separate=True):
 def bench_sorted_octree(repeat, sides=(16, 29, 32, 42)):
     """The linear-octree paper's Table 4: sorted linear octree against the back-face-culled z-buffer,
     solid cubes of ``side``^3 voxels (4 k to 74 k voxels, the paper's range), at its three VPNs."""
-    from .view import angles_from_vpn
+    from voxrender.view import angles_from_vpn
 
     rows = []
     for side in sides:
-        encoded = segments.encode(np.pad(np.ones((side, side, side), bool), 2))
+        encoded = Encoded(segments.encode(np.pad(np.ones((side, side, side), bool), 2)))
         encoded.octree()  # built once, as the paper starts from the linear octree
         row = {"voxels": side ** 3}
         for vpn in ((1, 0, 0), (1, 1, 0), (1, 1, 1)):
             view = View(*angles_from_vpn(vpn), (256, 256), None)
             for method, options in (("zbuffer", {"count_writes": False}), ("octree-sort", {})):
-                row[f"{method} {vpn}"] = median_seconds(lambda: render(encoded, view, method, **options),
+                row[f"{method} {vpn}"] = median_seconds(lambda: rendered(encoded, view, method, **options),
                                                         repeat)[0]
         rows.append(row)
     return rows
@@ -298,14 +306,14 @@ def bench_octree(objects, repeat, size=512):
     """Tables II and III: every octree method and the dynamic screen at the papers' VPNs, statistics of the
     traversals, and the one-off cost of the octree and its face adjacency.  ``objects``: name -> (segments,
     scale), ``scale`` None to fit the volume."""
-    from . import octree
-    from .view import angles_from_vpn
+    from voxrender import octree
+    from voxrender.view import angles_from_vpn
 
     result, one_off = {}, {}
     for name, (encoded, scale) in objects.items():
         if id(encoded) not in one_off:        # timed on a fresh tree; the renders use the one kept with the object
             started = time.perf_counter()
-            fresh = octree.build(encoded.to_mask())
+            fresh = octree.build(encoded.segments.to_mask())
             built = time.perf_counter()
             fresh.white_to_white, fresh.white_to_black, fresh.parent
             one_off[id(encoded)] = {"octree_s": built - started, "adjacency_s": time.perf_counter() - built}
@@ -318,7 +326,7 @@ def bench_octree(objects, repeat, size=512):
             row = {"vpn": list(vpn), "seconds": {}, "stats": {}}
             for method in OCTREE_METHODS:
                 options = {"count_writes": False} if method == "zbuffer" else {}
-                seconds, image = median_seconds(lambda: render(encoded, view, method, **options), repeat)
+                seconds, image = median_seconds(lambda: rendered(encoded, view, method, **options), repeat)
                 row["seconds"][method] = seconds
                 row["stats"][method] = image.stats
                 row["scale"] = image.view.scale
@@ -447,12 +455,12 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
         peer, vtk_version = VtkPeer(volume.values, THRESHOLD), vtk.vtkVersion.GetVTKVersion()
     except ImportError:
         pass
-    skin = segments.encode(prep.binarize(volume, SKIN_THRESHOLD)[0])
+    skin = Encoded(segments.encode(prep.binarize(volume, SKIN_THRESHOLD)[0]))
     return {"when": time.strftime("%Y-%m-%d %H:%M"),
             "machine": f"{platform.machine()}, {platform.python_version()}, numpy {np.__version__}",
             "repeat": repeat, "read_s": read_s, "encode": encode, "vtk_version": vtk_version,
             "views": bench_views(encoded, repeat, peer=peer),
-            "skin": {"voxels": skin.voxel_count, "segments": skin.segment_count,
+            "skin": {"voxels": skin.segments.voxel_count, "segments": skin.segments.segment_count,
                      "views": bench_views(skin, repeat, views=PAPER_VIEWS)},
             "pipeline": bench_pipeline(path, max(1, repeat // 2)) if pipeline else {"command": "", "seconds": math.nan,
                                                                                    "method": DEFAULT_METHOD},
@@ -460,12 +468,13 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
             "batch": bench_batch(path),
             "octree": bench_octree({f"vhf_head {THRESHOLD:g} HU": (encoded, 1.0),
                                     f"vhf_head {THRESHOLD:g} HU, the volume fitted": (encoded, None),
-                                    "checkerboard 128^3, the volume fitted": (segments.encode(checkerboard()), None)},
+                                    "checkerboard 128^3, the volume fitted": (Encoded(segments.encode(checkerboard())),
+                                                                               None)},
                                    repeat),
             "sorted_octree": bench_sorted_octree(repeat),
             "raycast": bench_raycast(min(repeat, 3), {
                 "thin shell 128^3": (segments.encode(thin_shell()), View(30.0, 10.0, 0.0, (256, 256), 1.5)),
-                f"vhf_head {THRESHOLD:g} HU": (encoded, View(30.0, 10.0, 0.0, (256, 256), 0.5))})}
+                f"vhf_head {THRESHOLD:g} HU": (encoded.segments, View(30.0, 10.0, 0.0, (256, 256), 0.5))})}
 
 
 @click.command()

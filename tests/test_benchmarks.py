@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from voxrender import bench
+from benchmarks import bench
 from voxrender import segments
 from voxrender.view import View
 

@@ -1,0 +1,46 @@
+import os
+
+import numpy as np
+import pytest
+
+from voxrender import output
+from voxrender.errors import InputError
+
+
+def test_atomic_output_leaves_nothing_on_failure(tmp_path):
+    target = tmp_path / "out.png"
+    with pytest.raises(RuntimeError):
+        with output.atomic_output(target) as tmp:
+            tmp.write_bytes(b"half")
+            raise RuntimeError("boom")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_atomic_output_has_the_usual_permissions(tmp_path):
+    target = tmp_path / "out.bin"
+    with output.atomic_output(target) as tmp:
+        tmp.write_bytes(b"x")
+    mask = os.umask(0)
+    os.umask(mask)
+    assert target.stat().st_mode & 0o777 == 0o666 & ~mask
+
+
+def test_check_writable(tmp_path):
+    with pytest.raises(InputError, match="does not exist"):
+        output.check_writable(tmp_path / "no" / "out.png")
+    with pytest.raises(InputError, match="is a folder"):
+        output.check_writable(tmp_path)
+
+
+def test_writers_round_trip(tmp_path):
+    import imageio.v3 as iio
+    import json
+
+    depth = np.array([[1.5, np.inf]], np.float32)
+    output.write_npy(tmp_path / "d.npy", depth)
+    assert np.array_equal(np.load(tmp_path / "d.npy"), depth)
+    output.write_json(tmp_path / "s.json", {"a": np.float32(0.5)})
+    assert json.loads((tmp_path / "s.json").read_text()) == {"a": 0.5}
+    slices = np.arange(24, dtype=np.uint16).reshape(2, 3, 4) * 1000
+    folder = output.write_slices(slices, tmp_path / "stack")
+    assert np.array_equal(np.stack([iio.imread(folder / f"slice_00{z}.png") for z in range(2)]), slices)

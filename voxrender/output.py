@@ -1,0 +1,98 @@
+"""Writing files, atomically: pictures, depth arrays, JSON reports and slice folders.
+
+Every writer goes through :func:`atomic_output`: the file appears complete under its name, or not
+at all, so a failed or interrupted command never leaves a half-written output.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = ["check_writable", "atomic_output", "write_png", "write_npy", "write_json", "write_slices"]
+
+
+def check_writable(path):
+    """Raise :class:`InputError` now if ``path`` could not be written later.
+
+    >>> check_writable("/no/such/folder/out.png")
+    Traceback (most recent call last):
+    ...
+    voxrender.errors.InputError: cannot write /no/such/folder/out.png: folder /no/such/folder does not exist
+    """
+    path = Path(path)
+    folder = path.parent
+    if not folder.is_dir():
+        raise InputError(f"cannot write {path}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise InputError(f"cannot write {path}: folder {folder} is not writable")
+    if path.is_dir():
+        raise InputError(f"cannot write {path}: it is a folder; give a file name")
+
+
+@contextlib.contextmanager
+def atomic_output(path):
+    """Yield a temporary path beside ``path``; rename it to ``path`` only on success.
+
+    A failure leaves neither a partial file nor the temporary behind.
+    """
+    path = Path(path)
+    check_writable(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the file the usual permissions
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def _umask():
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def write_png(path, image):
+    """Write an 8-bit or 16-bit image (grey or RGB) to ``path`` as PNG, atomically."""
+    import imageio.v3 as iio
+
+    with atomic_output(path) as tmp:
+        iio.imwrite(tmp, image, extension=".png")
+
+
+def write_npy(path, array):
+    """Write ``array`` to ``path`` as ``.npy``, atomically."""
+    with atomic_output(path) as tmp, open(tmp, "wb") as f:
+        np.save(f, array)
+
+
+def write_json(path, data):
+    """Write ``data`` to ``path`` as indented JSON (NumPy numbers as floats), atomically."""
+    with atomic_output(path) as tmp:
+        tmp.write_text(json.dumps(data, indent=2, default=float))
+
+
+def write_slices(values, folder):
+    """Write ``values[z, y, x]`` (uint16) as 16-bit PNG slices ``slice_000.png`` ... into ``folder``.
+
+    >>> import tempfile
+    >>> folder = write_slices(np.zeros((2, 3, 4), np.uint16), Path(tempfile.mkdtemp()) / "stack")
+    >>> sorted(p.name for p in folder.iterdir())
+    ['slice_000.png', 'slice_001.png']
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    for z, plane in enumerate(values):
+        write_png(folder / f"slice_{z:03d}.png", plane)
+    return folder

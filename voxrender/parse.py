@@ -1,0 +1,154 @@
+"""Text to typed values: the small languages of the command line and of batch manifests.
+
+The library takes numbers, tuples and slices; only the command line and the manifests hold text.
+Each parser raises :class:`~voxrender.errors.InputError` naming its ``parameter``, which the CLI
+turns into the flag (``--crop``) and a manifest error into the column.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+
+from .errors import InputError
+from .io import RawLayout
+from .prep import otsu_threshold
+
+__all__ = ["size", "vector", "colour", "clip_range", "crop", "threshold", "raw_layout"]
+
+
+def size(text):
+    """``"N"`` or ``"WxH"`` pixels to ``(H, W)``.
+
+    >>> size("640x480"), size("256")
+    ((480, 640), (256, 256))
+    """
+    try:
+        parts = [int(p) for p in str(text).lower().split("x")]
+    except ValueError:
+        parts = []
+    if len(parts) == 1:
+        parts = parts * 2
+    if len(parts) != 2 or min(parts) < 1 or max(parts) > 32768:
+        raise InputError(f"{text!r} must be N or WxH in pixels, e.g. 512 or 640x480", parameter="size")
+    width, height = parts
+    return height, width
+
+
+def vector(text, parameter, count=3):
+    """``"1,2,3"`` to a tuple of ``count`` finite floats.
+
+    >>> vector("1, -2,0.5", "light")
+    (1.0, -2.0, 0.5)
+    """
+    try:
+        values = tuple(float(v) for v in str(text).split(","))
+    except ValueError:
+        values = ()
+    if len(values) != count or not all(np.isfinite(values)):
+        raise InputError(f"{text!r} must be {count} numbers separated by commas", parameter=parameter)
+    return values
+
+
+def colour(text, parameter="background"):
+    """A colour: a grey level ``"40"``, ``"r,g,b"`` in 0..255, or a name (black, white, grey).
+
+    >>> colour("white"), colour("20,30,40"), colour("7")
+    ((255, 255, 255), (20, 30, 40), (7, 7, 7))
+    """
+    names = {"black": (0, 0, 0), "white": (255, 255, 255), "grey": (128, 128, 128), "gray": (128, 128, 128)}
+    if str(text).lower() in names:
+        return names[str(text).lower()]
+    try:
+        values = tuple(int(p) for p in str(text).split(","))
+    except ValueError:
+        values = ()
+    if len(values) == 1:
+        values = values * 3
+    if len(values) != 3 or not all(0 <= v <= 255 for v in values):
+        raise InputError(f"{text!r} must be a grey level 0..255, r,g,b, black or white", parameter=parameter)
+    return values
+
+
+def clip_range(text, parameter):
+    """``"a:b"`` (either side may be empty) to ``(a, b)`` with ``None`` for an open side.
+
+    >>> clip_range("10:", "clip_x")
+    (10, None)
+    """
+    lo, sep, hi = str(text).partition(":")
+    try:
+        bounds = (int(lo) if lo.strip() else None, int(hi) if hi.strip() else None)
+    except ValueError:
+        bounds = None
+    if not sep or bounds is None or (None not in bounds and bounds[0] >= bounds[1]):
+        raise InputError(f"{text!r} must be a:b with whole numbers a < b (either may be left out)",
+                         parameter=parameter)
+    return bounds
+
+
+def crop(text):
+    """``"x0:x1,y0:y1,z0:z1"`` (voxel indices, end excluded, parts may be empty) to ``(z, y, x)`` slices.
+
+    >>> crop("10:20,:,5:")
+    (slice(5, None, None), slice(None, None, None), slice(10, 20, None))
+    """
+    parts = str(text).split(",")
+    if len(parts) != 3:
+        raise InputError(f"{text!r} must be x0:x1,y0:y1,z0:z1 (parts may be empty, e.g. ':,:,10:50')",
+                         parameter="crop")
+    result = []
+    for axis, part in zip("xyz", parts):
+        lo, sep, hi = part.partition(":")
+        if not sep and part.strip():
+            raise InputError(f"{text!r}: {axis} range {part!r} needs a colon, as in {part}:", parameter="crop")
+        try:
+            result.append(slice(int(lo) if lo.strip() else None, int(hi) if hi.strip() else None))
+        except ValueError:
+            raise InputError(f"{text!r}: {axis} range {part!r} is not a:b with whole numbers",
+                             parameter="crop") from None
+    return tuple(result[::-1])
+
+
+def threshold(text):
+    """A threshold: a number, or ``"otsu"`` for :func:`voxrender.prep.otsu_threshold`.
+
+    >>> threshold("-300"), threshold("otsu").__name__
+    (-300.0, 'otsu_threshold')
+    """
+    if str(text).strip().lower() == "otsu":
+        return otsu_threshold
+    try:
+        value = float(text)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not math.isfinite(value):
+        raise InputError(f"{text!r} must be a finite number (in stored units, HU for CT) or 'otsu'",
+                         parameter="threshold")
+    return value
+
+
+def raw_layout(text):
+    """``"WxH:dtype:endian"`` to a :class:`~voxrender.io.RawLayout`.
+
+    >>> layout = raw_layout("64x64:uint16:little")
+    >>> layout.width, layout.height, layout.dtype.str
+    (64, 64, '<u2')
+    """
+    match = re.fullmatch(r"\s*(\d+)[xX](\d+):(\w+)(?::(\w+))?\s*", text or "")
+    if not match:
+        raise InputError(f"{text!r} is not WxH:dtype:endian, e.g. 64x64:uint16:little", parameter="raw")
+    width, height, name, endian = match.groups()
+    try:
+        dtype = np.dtype(name)
+    except TypeError:
+        raise InputError(f"unknown dtype {name!r}; use uint8, int16, uint16, int32, float32, ...",
+                         parameter="raw") from None
+    orders = {None: "<", "little": "<", "le": "<", "big": ">", "be": ">"}
+    if (endian and endian.lower()) not in orders:
+        raise InputError(f"byte order {endian!r} must be little or big", parameter="raw")
+    if dtype.kind not in "uif":
+        raise InputError(f"dtype {name!r} is not numeric", parameter="raw")
+    return RawLayout(int(width), int(height), dtype.newbyteorder(orders[endian and endian.lower()]))

@@ -1,0 +1,172 @@
+"""The picture step: render, shade, time, and write the outputs, the same for every command.
+
+:class:`RenderOptions` holds everything that turns an encoded object and a view into a
+picture (method and its options, clip and cut, framing, shading); :func:`picture` makes it
+and :func:`write_outputs` writes it with its optional depth image and report.  ``voxrender
+render``, ``voxrender batch`` and the demo all go through these two functions, so the same
+options give the same picture from every command.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import output, shade
+from .errors import InputError
+from .render import DEFAULT_METHOD, Clip, DepthImage, method_record, render
+from .view import View
+
+__all__ = ["RenderOptions", "Outputs", "Picture", "picture", "write_outputs", "about"]
+
+SHADINGS = ("gradient", "depth")
+
+
+@dataclass(frozen=True)
+class RenderOptions:
+    """How a picture is made from an encoded object and view angles.
+
+    Parameters
+    ----------
+    method : str
+        A name in :data:`voxrender.render.METHODS`.
+    method_options : dict
+        The method's own options (e.g. ``{"connectivity": "6"}`` for ``raycast``).
+    clip : Clip, optional
+        Clip limits and the cut plane.
+    fit : {"volume", "object"}
+        What an unset ``scale`` fits at any rotation.
+    size : (H, W)
+        Picture size in pixels.
+    scale : float, optional
+        Pixels per voxel (default: fitted).
+    supersample : int
+        Pre-image supersampling, for methods that turn a pre-image by gamma.
+    shading : {"gradient", "depth"}
+    light : 3 floats
+        Direction toward the light in image space.
+    colour : 3 floats in [0, 1]
+        Colour of a fully lit surface.
+    background : 3 ints in [0, 255]
+    """
+
+    method: str = DEFAULT_METHOD
+    method_options: dict = field(default_factory=dict)
+    clip: Clip | None = None
+    fit: str = "volume"
+    size: tuple = (512, 512)
+    scale: float | None = None
+    supersample: int = 2
+    shading: str = "gradient"
+    light: tuple = (0.0, 0.0, -1.0)
+    colour: tuple = (1.0, 1.0, 1.0)
+    background: tuple = (0, 0, 0)
+
+    def __post_init__(self):
+        record = method_record(self.method)
+        unknown = sorted(set(self.method_options) - set(record.options))
+        if unknown:
+            raise InputError(f"method {self.method!r} takes no option {unknown[0]!r} "
+                             f"(its options: {', '.join(record.options) or 'none'})", parameter=unknown[0])
+        if self.shading not in SHADINGS:
+            raise InputError(f"unknown shading {self.shading!r}; choose {' or '.join(SHADINGS)}", parameter="shading")
+        if self.fit not in ("volume", "object"):
+            raise InputError(f"{self.fit!r}: choose 'volume' or 'object'", parameter="fit")
+        light = np.asarray(self.light, dtype=float)
+        if light.shape != (3,) or not np.all(np.isfinite(light)) or not np.linalg.norm(light) > 0:
+            raise InputError(f"{self.light} must be a non-zero direction x, y, z", parameter="light")
+        View(size=self.size, scale=self.scale)   # checks size and scale
+
+    def view(self, alpha=0.0, beta=0.0, gamma=0.0):
+        """The :class:`View` of these options at the given angles (degrees)."""
+        return View(alpha, beta, gamma, tuple(self.size), self.scale)
+
+
+@dataclass(frozen=True)
+class Outputs:
+    """Where a picture goes: the PNG and, optionally, the depth image (``.npy`` and 16-bit PNG) and a JSON
+    report of timings and the renderer's statistics."""
+
+    picture: Path
+    depth: Path | None = None
+    depth_png: Path | None = None
+    stats_json: Path | None = None
+
+    def paths(self):
+        return [p for p in (self.picture, self.depth, self.depth_png, self.stats_json) if p is not None]
+
+
+@dataclass
+class Picture:
+    """A finished picture: ``rgb`` (H, W, 3) uint8, the :class:`DepthImage` and ``seconds`` by stage."""
+
+    rgb: np.ndarray
+    image: DepthImage
+    seconds: dict
+
+
+def picture(segments, view, options=None, progress=None, tree=None):
+    """Render ``segments`` from ``view`` and shade it as ``options`` say.
+
+    Parameters
+    ----------
+    segments : Segments
+    view : View
+        Usually ``options.view(alpha, beta, gamma)``.
+    options : RenderOptions, optional
+    progress : callable, optional
+    tree : RegionOctree, optional
+        The object's region octree, kept by the caller for octree methods.
+
+    Returns
+    -------
+    Picture
+        With ``seconds["render"]`` (the renderer alone) and ``seconds["shade"]``.
+
+    Examples
+    --------
+    >>> from voxrender.segments import encode
+    >>> result = picture(encode(np.ones((4, 4, 4), bool)), View(30, 20, size=(16, 16), scale=2.0))
+    >>> result.rgb.shape, result.image.method
+    ((16, 16, 3), 'ftb')
+    """
+    options = options or RenderOptions()
+    image = render(segments, view, options.method, progress, options.supersample, options.clip, options.fit,
+                   tree, **options.method_options)
+    started = time.perf_counter()
+    rgb = shade.shade(image.depth, options.shading, image.view.scale, options.light, options.colour,
+                      options.background)
+    return Picture(rgb, image, {"render": image.seconds, "shade": time.perf_counter() - started})
+
+
+def write_outputs(result, outputs, about=None):
+    """Write ``result`` to ``outputs``, and add ``write`` and ``total`` to ``result.seconds``.
+
+    ``result.seconds`` may already hold earlier stages (``load``, ``prepare``); ``total`` is the sum of
+    all stages.  ``about`` adds fields to the JSON report (e.g. the object's size).
+    """
+    started = time.perf_counter()
+    output.write_png(outputs.picture, result.rgb)
+    if outputs.depth is not None:
+        output.write_npy(outputs.depth, result.image.depth)
+    if outputs.depth_png is not None:
+        output.write_png(outputs.depth_png, shade.depth_to_uint16(result.image.depth))
+    result.seconds["write"] = time.perf_counter() - started
+    result.seconds["total"] = sum(v for k, v in result.seconds.items() if k != "total")
+    if outputs.stats_json is not None:
+        image = result.image
+        output.write_json(outputs.stats_json, {
+            "method": image.method, "seconds": result.seconds, "stats": image.stats,
+            "view": {"alpha": image.view.alpha, "beta": image.view.beta, "gamma": image.view.gamma,
+                     "scale": image.view.scale, "size": list(image.view.size)},
+            "covered_pixels": int(image.coverage.sum()), **(about or {})})
+    return result.seconds
+
+
+def about(segments):
+    """The object's part of a picture's JSON report: its grid, voxels, segments and where it came from."""
+    return {"object": {"shape": list(segments.shape), "voxels": segments.voxel_count,
+                       "segments": segments.segment_count, **segments.meta}}
