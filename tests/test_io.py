@@ -1,4 +1,5 @@
 import zlib
+from pathlib import Path
 
 import imageio.v3 as iio
 import numpy as np
@@ -279,3 +280,32 @@ def test_missing_and_empty_and_unknown(tmp_path):
     (tmp_path / "thing.xyz").write_text("?")
     with pytest.raises(InputError, match="cannot tell the format"):
         io.read_volume(tmp_path / "thing.xyz")
+
+
+# ------------------------------------------------------------------ the recipe "add a reader" (docs/design.md)
+
+def read_toy(path, progress):
+    """A toy format written by the recipe: JSON with ``values`` [z][y][x] and ``spacing`` (x, y, z)."""
+    import json
+
+    data = json.loads(Path(path).read_text())
+    values = np.asarray(data["values"], np.int16)
+    return io.Volume(values, tuple(data["spacing"]), {"spacing_from": "toy header"})
+
+
+def test_a_toy_reader_added_by_the_recipe(tmp_path, monkeypatch):
+    import json
+
+    from voxrender.pipeline import PrepOptions, load_segments
+
+    monkeypatch.setitem(io.READERS, "toy", io.Reader(read_toy, suffixes=(".toy",)))
+    values = np.zeros((3, 4, 5), int)
+    values[1, 1:3, 1:4] = 100
+    (tmp_path / "box.toy").write_text(json.dumps({"values": values.tolist(), "spacing": [1, 1, 2]}))
+    volume = io.read_volume(tmp_path / "box.toy")
+    assert volume.meta["format"] == "toy" and volume.spacing == (1, 1, 2)
+    assert np.array_equal(volume.values, values)
+    encoded = load_segments(tmp_path / "box.toy", prepare=PrepOptions(threshold=50, resample=False))
+    assert encoded.segments.voxel_count == 6
+    with pytest.raises(InputError, match="toy input takes no series"):
+        io.read_volume(tmp_path / "box.toy", series="1.2")

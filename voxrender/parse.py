@@ -2,7 +2,7 @@
 
 The library takes numbers, tuples and slices; only the command line and the manifests hold text.
 Each parser raises :class:`~voxrender.errors.InputError` naming its ``parameter``, which the CLI
-turns into the flag (``--crop``) and a manifest error into the column.
+turns into its flag and a manifest error into its column.
 """
 
 from __future__ import annotations

@@ -8,6 +8,7 @@ first use, so that a batch worker rendering many views pays for it once.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,6 +45,8 @@ class PrepOptions:
     min_object: int = 0
 
     def __post_init__(self):
+        if self.voxel is not None and not (self.voxel > 0 and math.isfinite(self.voxel)):
+            raise InputError(f"{self.voxel} must be a positive size in mm", parameter="voxel")
         if self.min_object < 0:
             raise InputError(f"{self.min_object} must be 0 or more voxels", parameter="min_object")
 

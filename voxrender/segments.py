@@ -104,6 +104,21 @@ def encode(mask, spacing=(1.0, 1.0, 1.0), meta=None):
     row, the places where a voxel differs from its left neighbour alternate
     between run starts and one-past-run ends, in row order.
 
+    Parameters
+    ----------
+    mask : array_like of bool, ``[z, y, x]``
+        The object.
+    spacing : 3 floats
+        Voxel spacing (x, y, z) in mm, kept with the segments.
+    meta : dict, optional
+        Where the object came from (source, threshold ...), kept with the segments.
+
+    Returns
+    -------
+    Segments
+
+    Examples
+    --------
     >>> encode(np.array([[[0, 1, 1, 0, 1]]], bool)).starts
     array([1, 4], dtype=int32)
     """

@@ -1,6 +1,6 @@
 """Views: rotations, the projection contract, view-plane normals and Theorem 2.
 
-The contract (``DESIGN.md``): a voxel is the closed unit cube centred on its grid
+The contract (``docs/design.md``): a voxel is the closed unit cube centred on its grid
 point ``p = (x, y, z)``; image space is ``p' = R (p - c)`` with ``c`` the volume
 centre and ``R = Rz(gamma) Ry(beta) Rx(alpha)``; the projection is orthographic,
 the viewer at ``Z' = -inf`` looking toward ``+Z'``; pixel ``(row j, column i)``

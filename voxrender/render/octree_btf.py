@@ -78,7 +78,35 @@ def _new_stats(tree):
 
 
 def render_octree_btf(segments, view, progress=None, clip=None, tree=None):
-    """Meagher's back-to-front octree display, vectorised over the black octants of each size."""
+    """Meagher's back-to-front octree display, vectorised over the black octants of each size.
+
+    Parameters
+    ----------
+    segments : Segments
+    view : View
+        With ``scale`` set.
+    progress : callable, optional
+        Unused (the traversal is a few array passes).
+    clip : Clip, optional
+        Clip limits and cut plane (the octree of the clipped object is built).
+    tree : RegionOctree, optional
+        The object's region octree (built from ``segments`` when not given).
+
+    Returns
+    -------
+    depth : ndarray of float32, (H, W)
+    stats : dict
+        Tables II and III of Zhao and Davis: ``white_visited``, ``black_visited``, ``grey_visited``,
+        ``black_faces``, ``scanlines_accumulated``, ``pixels_accumulated``, ``pixel_writes``, ``black_seconds``.
+
+    Examples
+    --------
+    >>> from voxrender import segments
+    >>> from voxrender.view import View
+    >>> depth, stats = render_octree_btf(segments.encode(np.ones((4, 4, 4), bool)), View(30, 20, 0, (16, 16), 2.0))
+    >>> stats["black_visited"], stats["black_faces"], bool(np.isfinite(depth).any())
+    (1, 3, True)
+    """
     tree = region_octree(segments, view, clip, tree)
     vpn = vpn_from_angles(view.alpha, view.beta, view.gamma)
     height, width = view.size

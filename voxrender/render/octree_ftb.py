@@ -109,10 +109,25 @@ def new_stats():
 def render_octree_ftb(segments, view, progress=None, clip=None, tree=None):
     """Front-to-back octree display with blocking quadtrees (Zhao and Davis), vectorised.
 
-    Returns the depth image of the view contract and the statistics of the literal version
-    (Tables II and III): octants visited and blocked by colour, black faces scan-converted,
-    scanlines and pixels accumulated, pixels painted; plus ``white_seen``, the white leaves the
-    viewer sees, and ``black_seconds``, the time spent scan-converting black octants' faces.
+    Parameters
+    ----------
+    segments : Segments
+    view : View
+        With ``scale`` set.
+    progress : callable, optional
+        Unused (the traversal is a few array passes).
+    clip : Clip, optional
+        Clip limits and cut plane (the octree of the clipped object is built).
+    tree : RegionOctree, optional
+        The object's region octree (built from ``segments`` when not given).
+
+    Returns
+    -------
+    depth : ndarray of float32, (H, W)
+    stats : dict
+        The literal version's (Tables II and III): octants visited and blocked by colour, black faces
+        scan-converted, scanlines and pixels accumulated, pixels painted; plus ``white_seen``, the white
+        leaves the viewer sees, and ``black_seconds``, the time spent scan-converting black octants' faces.
 
     Examples
     --------

@@ -1,7 +1,7 @@
 """Zhao and Davis's front-to-back octree display with blocking quadtrees, as the paper writes it.
 
 This is the literal, recursive implementation: the oracle for the vectorised version
-(:mod:`.octree_ftb`, ``--method octree-ftb``).
+(:mod:`.octree_ftb`, registered as ``octree-ftb``).
 
 One blocking quadtree per potentially visible axis (the seven viewing classes XYZ, XY,
 XZ, YZ, X, Y, Z are the non-zero components of the VPN), each stored as a *blocking

@@ -123,9 +123,35 @@ def _stats(tree, codes, vpn, pixels, written):
 def render_octree_sort(segments, view, progress=None, clip=None, order="ftb", tree=None):
     """Sorted linear-octree display, vectorised: recode, ``np.argsort`` on Q', paint in order.
 
-    ``order="ftb"``: each pixel keeps its first write; ``"painter"``: back to front, each
-    write replaces the last.  Statistics: voxels, linear-octree codes, faces drawn
-    (Table 3), fragments (pixel-cube hits) and pixel writes.
+    Parameters
+    ----------
+    segments : Segments
+    view : View
+        With ``scale`` set.
+    progress : callable, optional
+        Unused (the traversal is a few array passes).
+    clip : Clip, optional
+        Clip limits and cut plane (the octree of the clipped object is built).
+    order : {"ftb", "painter"}
+        ``"ftb"``: each pixel keeps its first write; ``"painter"``: back to front, each write replaces
+        the last (the same picture; only ``pixel_writes`` differs).
+    tree : RegionOctree, optional
+        The object's region octree (built from ``segments`` when not given).
+
+    Returns
+    -------
+    depth : ndarray of float32, (H, W)
+    stats : dict
+        ``voxels``, ``linear_octree_codes``, ``faces`` drawn (Table 3), ``fragments`` (pixel-cube hits) and
+        ``pixel_writes``.
+
+    Examples
+    --------
+    >>> from voxrender import segments
+    >>> from voxrender.view import View
+    >>> depth, stats = render_octree_sort(segments.encode(np.ones((2, 2, 2), bool)), View(size=(4, 4), scale=1.0))
+    >>> depth[1:3, 1:3].tolist(), stats["voxels"], stats["pixel_writes"]
+    ([[-1.0, -1.0], [-1.0, -1.0]], 8, 4)
     """
     tree, codes = _voxels(segments, view, clip, tree)
     vpn = vpn_from_angles(view.alpha, view.beta, view.gamma)
@@ -146,9 +172,34 @@ def render_octree_sort(segments, view, progress=None, clip=None, order="ftb", tr
 def render_zbuffer(segments, view, progress=None, clip=None, count_writes=True, tree=None):
     """The unsorted z-buffer with back-face culling, vectorised; ``pixel_writes`` counts depth tests passed.
 
-    Counting the passed tests needs a sort of all fragments that the z-buffer itself does not:
-    ``count_writes=False`` skips it (``pixel_writes`` is then ``None``), so that timings compare the
-    z-buffer's own work.
+    Parameters
+    ----------
+    segments : Segments
+    view : View
+        With ``scale`` set.
+    progress : callable, optional
+        Unused (the traversal is a few array passes).
+    clip : Clip, optional
+        Clip limits and cut plane (the octree of the clipped object is built).
+    count_writes : bool
+        Counting the passed tests needs a sort of all fragments that the z-buffer itself does not:
+        ``False`` skips it (``pixel_writes`` is then ``None``), so that timings compare the z-buffer's own work.
+    tree : RegionOctree, optional
+        The object's region octree (built from ``segments`` when not given).
+
+    Returns
+    -------
+    depth : ndarray of float32, (H, W)
+    stats : dict
+        As :func:`render_octree_sort`'s.
+
+    Examples
+    --------
+    >>> from voxrender import segments
+    >>> from voxrender.view import View
+    >>> depth, stats = render_zbuffer(segments.encode(np.ones((2, 2, 2), bool)), View(size=(4, 4), scale=1.0))
+    >>> depth[1:3, 1:3].tolist(), stats["fragments"]
+    ([[-1.0, -1.0], [-1.0, -1.0]], 8)
     """
     tree, codes = _voxels(segments, view, clip, tree)
     vpn = vpn_from_angles(view.alpha, view.beta, view.gamma)

@@ -1,0 +1,87 @@
+"""The picture step: one RenderOptions, the same picture from ``render``, ``batch`` and the library."""
+
+import json
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from voxrender import segments
+from voxrender.cli import main
+from voxrender.errors import InputError
+from voxrender.picture import Outputs, RenderOptions, picture, write_outputs
+from voxrender.render import METHODS, Clip
+from voxrender.view import View
+
+ANGLES = (30.0, 20.0, 10.0)
+# Each method, then clipping, cut, gamma, light and shading: every option both commands declare.
+GRID = [[]] + [["--method", m] for m in sorted(METHODS) if m != "ftb"] + [
+    ["--connectivity", "6", "--method", "raycast"],
+    ["--clip-x", "8:", "--clip-z", ":15"],
+    ["--cut-depth", "0.5", "--method", "btf"],
+    ["--gamma-only"],
+    ["--light", "1,-1,-1", "--background", "20,30,40"],
+    ["--shading", "depth", "--supersample", "3"],
+    ["--scale", "1.5", "--size", "40x36"],
+    ["--fit", "object"],
+]
+
+
+@pytest.fixture
+def ball_file(tmp_path):
+    zz, yy, xx = np.mgrid[:18, :20, :22]
+    values = ((xx - 11) ** 2 + (yy - 9) ** 2 + (zz - 8) ** 2 <= 36) * 1000 + ((xx + yy) % 7 == 0) * (zz < 4) * 900
+    np.save(tmp_path / "ball.npy", values.astype(np.int16))
+    return tmp_path / "ball.npy"
+
+
+def run(*args):
+    result = CliRunner().invoke(main, [str(a) for a in args])
+    assert result.exit_code == 0, result.output
+    return result
+
+
+@pytest.mark.parametrize("options", GRID, ids=lambda o: " ".join(o) or "defaults")
+def test_render_and_batch_make_identical_pictures(tmp_path, ball_file, options):
+    angles = (0.0, 0.0, 45.0) if options == ["--gamma-only"] else ANGLES
+    options = [] if options == ["--gamma-only"] else options
+    size = [] if "--size" in options else ["--size", "48"]
+    run("render", ball_file, "--threshold", 500, "--alpha", angles[0], "--beta", angles[1], "--gamma", angles[2],
+        *size, *options, "-o", tmp_path / "render.png", "--depth-out", tmp_path / "render.npy",
+        "--stats-json", tmp_path / "render.json")
+    run("batch", ball_file, "--threshold", 500, "--angles", ",".join(map(str, angles)), *size, *options,
+        "--jobs", 1, "-o", tmp_path / "out", "--pattern", "batch.png", "--depth-out", "batch.npy",
+        "--stats-json", "batch.json")
+    assert (tmp_path / "render.png").read_bytes() == (tmp_path / "out" / "batch.png").read_bytes()
+    assert np.array_equal(np.load(tmp_path / "render.npy"), np.load(tmp_path / "out" / "batch.npy"))
+    rendered, batched = (json.loads(p.read_text()) for p in (tmp_path / "render.json", tmp_path / "out" / "batch.json"))
+    timings = {"black_seconds", "reference_seconds"}
+    assert {k: v for k, v in rendered["stats"].items() if k not in timings} == \
+        {k: v for k, v in batched["stats"].items() if k not in timings}
+    assert rendered["view"] == batched["view"] and rendered["object"] == batched["object"]
+    assert set(rendered["seconds"]) == {"load", "prepare", "render", "shade", "write", "total"}
+
+
+def test_picture_is_what_the_commands_write(tmp_path, ball_file):
+    run("render", ball_file, "--threshold", 500, "--alpha", 30, "--beta", 20, "--size", 48, "--light", "1,0,-1",
+        "-o", tmp_path / "cli.png")
+    encoded = segments.encode(np.load(ball_file) >= 500)
+    options = RenderOptions(size=(48, 48), light=(1.0, 0.0, -1.0))
+    result = picture(encoded, options.view(30, 20), options)
+    assert np.array_equal(result.rgb, iio.imread(tmp_path / "cli.png"))
+    seconds = write_outputs(result, Outputs(tmp_path / "lib.png", depth_png=tmp_path / "d.png"))
+    assert set(seconds) == {"render", "shade", "write", "total"}
+    assert (tmp_path / "lib.png").read_bytes() == (tmp_path / "cli.png").read_bytes()
+    assert iio.imread(tmp_path / "d.png").dtype == np.uint16
+
+
+def test_options_are_checked_when_made():
+    for bad, parameter in (({"shading": "phong"}, "shading"), ({"fit": "all"}, "fit"), ({"light": (0, 0, 0)}, "light"),
+                           ({"scale": -1.0}, "scale"), ({"size": (0, 4)}, "size"), ({"method": "nope"}, "method"),
+                           ({"method_options": {"connectivity": "6"}}, "connectivity")):
+        with pytest.raises(InputError) as info:
+            RenderOptions(**bad)
+        assert info.value.parameter == parameter
+    assert RenderOptions("raycast", {"connectivity": "26"}, Clip(x=(1, None))).view(1, 2, 3) == \
+        View(1, 2, 3, (512, 512), None)
