@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -173,8 +174,9 @@ class View:
             if not math.isfinite(getattr(self, name)):
                 raise InputError(f"{getattr(self, name)} must be a finite angle in degrees", parameter=name)
 
-    @property
+    @cached_property
     def matrix(self):
+        """``R = Rz(gamma) Ry(beta) Rx(alpha)``, computed once per view (renderers ask for it per slice)."""
         return rotation_matrix(self.alpha, self.beta, self.gamma)
 
     # The contract's mappings.  Every renderer, the clipper, the pre-image turn and the ray caster use these,

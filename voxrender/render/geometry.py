@@ -82,7 +82,7 @@ class Fragments(NamedTuple):
     scanlines: int         # (box, pixel row) pairs with at least one fragment
 
 
-def paint_boxes(view, shape, x, y, z, half=(0.5, 0.5, 0.5), chunk_pixels=4_000_000):
+def paint_boxes(view, shape, x, y, z, half=(0.5, 0.5, 0.5), count_scanlines=False, chunk_pixels=2_000_000):
     """Every pixel whose ray meets one of the boxes, with the depth where it enters the box.
 
     Parameters
@@ -95,6 +95,8 @@ def paint_boxes(view, shape, x, y, z, half=(0.5, 0.5, 0.5), chunk_pixels=4_000_0
         Object-space box centres (voxel indices; half-integers for octants of even size).
     half : (3,) or (N, 3) array
         Half-extents along x, y, z: 1/2 for voxels; one of them 0 for octant faces.
+    count_scanlines : bool
+        Also count the (box, pixel row) pairs with a fragment (Zhao and Davis's scanlines); ``0`` otherwise.
     chunk_pixels : int
         At most about this many candidate pixels are tested at once, to bound memory.
 
@@ -106,12 +108,13 @@ def paint_boxes(view, shape, x, y, z, half=(0.5, 0.5, 0.5), chunk_pixels=4_000_0
     Examples
     --------
     >>> from voxrender.view import View
-    >>> found = paint_boxes(View(size=(4, 4), scale=1.0), (1, 1, 1), np.array([0]), np.array([0]), np.array([0]))
+    >>> found = paint_boxes(View(size=(4, 4), scale=1.0), (1, 1, 1), np.array([0]), np.array([0]), np.array([0]),
+    ...                     count_scanlines=True)
     >>> found.pixels.tolist(), found.depths.round(6).tolist(), found.scanlines
     ([5, 6, 9, 10], [-0.5, -0.5, -0.5, -0.5], 2)
     """
-    x, y, z = np.broadcast_arrays(*(np.atleast_1d(np.asarray(c, dtype=float)) for c in (x, y, z)))
-    if not len(x):
+    count = int(np.broadcast(x, y, z).size)
+    if not count:
         return Fragments(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64), 0)
     matrix = view.matrix
     height, width = view.size
@@ -120,22 +123,28 @@ def paint_boxes(view, shape, x, y, z, half=(0.5, 0.5, 0.5), chunk_pixels=4_000_0
     kx = int(math.floor(2 * float(np.max(reach_x)))) + 1
     ky = int(math.floor(2 * float(np.max(reach_y)))) + 1
     per_chunk = max(1, chunk_pixels // (kx * ky))
+    uniform = half.ndim == 1
+    extents = [float(h) for h in half] if uniform else None
     parts, scanlines = [], 0
-    for start in range(0, len(x), per_chunk):
+    for start in range(0, count, per_chunk):
         part = slice(start, start + per_chunk)
-        xc, yc, zc = view.to_image(x[part], y[part], z[part], shape)
+        centres = (x, y, z) if count <= per_chunk else (c[part] if np.ndim(c) else c for c in (x, y, z))
+        xc, yc, zc = view.to_image(*centres, shape)
         column, row = view.pixel_index(xc, yc)
-        rx, ry = (r[part] if np.ndim(r) else r for r in (reach_x, reach_y))
+        rx, ry = (reach_x, reach_y) if uniform else (reach_x[part], reach_y[part])
         i = np.ceil(column - rx - EPS).astype(np.int64)[:, None, None] + np.arange(kx)
         j = np.ceil(row - ry - EPS).astype(np.int64)[:, None, None] + np.arange(ky)[:, None]
         px, py = view.pixel_centres(i, j)
-        extents = [half[part, k, None, None] if half.ndim == 2 else float(half[k]) for k in range(3)]
+        if not uniform:
+            extents = [half[part, k, None, None] for k in range(3)]
         hit, entry = ray_box_entry(px - xc[:, None, None], py - yc[:, None, None], matrix, *extents)
         hit &= (i >= 0) & (i < width) & (j >= 0) & (j < height)
-        scanlines += int(hit.any(axis=2).sum())
+        if count_scanlines:
+            scanlines += int(hit.any(axis=2).sum())
+        owner = np.nonzero(hit)[0]
         parts.append(((np.broadcast_to(j, hit.shape) * width + np.broadcast_to(i, hit.shape))[hit],
-                      (entry + zc[:, None, None])[hit], np.nonzero(hit)[0] + start))
-    pixels, depths, owner = (np.concatenate(p) for p in zip(*parts))
+                      (entry + zc[:, None, None])[hit], owner + start if start else owner))
+    pixels, depths, owner = (np.concatenate(p) for p in zip(*parts)) if len(parts) > 1 else parts[0]
     return Fragments(pixels, depths, owner, scanlines)
 
 
