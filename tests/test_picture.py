@@ -61,6 +61,7 @@ def test_render_and_batch_make_identical_pictures(tmp_path, ball_file, options):
         {k: v for k, v in batched["stats"].items() if k not in timings}
     assert rendered["view"] == batched["view"] and rendered["object"] == batched["object"]
     assert set(rendered["seconds"]) == {"load", "prepare", "render", "shade", "write", "total"}
+    assert set(batched["seconds"]) == {"render", "shade", "write", "total"}   # load and prepare: once per input
 
 
 def test_picture_is_what_the_commands_write(tmp_path, ball_file):

@@ -2,7 +2,10 @@
 
 The pipeline, one module per step::
 
-    io.read_volume ─► prep.binarize ─► segments.encode ─► render.render ─► shade.shade ─► io.write_png
+    io.read_volume ─► prep.binarize ─► segments.encode ─► render.render ─► shade.shade
+        ─► output.write_png
+
+``picture.picture`` is the render and shade step of every command; ``docs/design.md`` has the whole design.
 
 >>> import numpy as np
 >>> from voxrender import segments, view, render, shade

@@ -297,13 +297,12 @@ def render_task(item, view, index, segments_path, out_dir, encode_seconds):
         tree = encoded.octree() if method_record(item.method).octree else None
         result = picture(encoded.segments, item.options.view(view.alpha, view.beta, view.gamma), item.options,
                          tree=tree)
-        result.seconds = {"load": encode_seconds.get("load", 0.0), "prepare": encode_seconds.get("prepare", 0.0),
-                          **result.seconds}
         for path in outputs.paths():
             path.parent.mkdir(parents=True, exist_ok=True)
-        seconds = write_outputs(result, outputs, about(encoded.segments))
-        row.update(status="ok", error="", **{f"{stage}_s": value for stage, value in seconds.items()},
-                   stats=json.dumps(result.image.stats, default=float))
+        seconds = write_outputs(result, outputs, about(encoded.segments))   # this picture's stages
+        row.update(status="ok", error="", stats=json.dumps(result.image.stats, default=float),
+                   load_s=encode_seconds.get("load", 0.0), prepare_s=encode_seconds.get("prepare", 0.0),  # the input's
+                   **{f"{stage}_s": value for stage, value in seconds.items()})
     except InputError as exc:
         row.update(status="failed", error=str(exc))
     except Exception as exc:  # reported in the summary; the batch goes on
@@ -374,7 +373,8 @@ class _Dask:
             try:
                 self.client = Client(scheduler, timeout="10s")
             except OSError as exc:
-                raise InputError(f"cannot reach the Dask scheduler at {scheduler}: {exc}", parameter="scheduler") from None
+                raise InputError(f"cannot reach the Dask scheduler at {scheduler}: {exc}",
+                                 parameter="scheduler") from None
 
     def submit(self, fn, *args):
         return self.client.submit(fn, *args, pure=False)

@@ -44,9 +44,7 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 # ---------------------------------------------------------------- flags and their parsers
 
 # Library parameters whose flag is not "--" + the name with dashes.
-FLAGS = {"clip_x": "--clip-x", "clip_y": "--clip-y", "clip_z": "--clip-z", "picture": "--pattern",
-         "depth": "--depth-out", "inputs": "INPUT", "segments": "INPUT", "views": "the manifest's views",
-         "method_options": "--connectivity"}
+FLAGS = {"picture": "--pattern", "depth": "--depth-out", "inputs": "INPUT", "views": "the manifest's views"}
 
 
 def flag(parameter):
@@ -113,8 +111,12 @@ def _decorate(command, decorators):
 
 
 def _input_options(command):
+    return _decorate(command, [click.argument("input_path", metavar="INPUT", type=click.Path(path_type=Path)),
+                               _read_options_decorator])
+
+
+def _read_options_decorator(command):
     return _decorate(command, [
-        click.argument("input_path", metavar="INPUT", type=click.Path(path_type=Path)),
         click.option("--format", "format", default="auto", show_default=True,
                      type=click.Choice(io.FORMATS), help="Input format (auto-detected)."),
         click.option("--raw", metavar="WxH:DTYPE:ENDIAN", help="Headerless slices, e.g. 64x64:uint16:little."),
@@ -333,10 +335,7 @@ class _BatchBar:
 @click.option("-o", "--out", "out_dir", required=True, type=click.Path(path_type=Path),
               help="Folder for the pictures and summary.csv.")
 @click.option("--manifest", type=click.Path(path_type=Path), help="CSV or TOML: input, threshold, views, method, output.")
-@click.option("--format", "format", default="auto", show_default=True, type=click.Choice(io.FORMATS))
-@click.option("--raw", metavar="WxH:DTYPE:ENDIAN")
-@click.option("--spacing", metavar="X,Y,Z")
-@click.option("--series", metavar="UID")
+@_read_options_decorator
 @_prep_options_decorator
 @click.option("--view", "views", multiple=True, type=click.Choice(list(PRESETS)), help="A named view (repeatable).")
 @click.option("--angles", multiple=True, metavar="A,B,G", help="alpha,beta,gamma in degrees (repeatable).")
