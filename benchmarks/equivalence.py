@@ -1,7 +1,7 @@
 """Prove that a refactoring left every renderer's output alone: depth images and statistics, case by case.
 
-    python benchmarks/equivalence.py record OUT.npz [--head ../shared/data/vhf_head]
-    python benchmarks/equivalence.py compare BEFORE.npz AFTER.npz
+    python -m benchmarks.equivalence record OUT.npz [--head ../shared/data/vhf_head]
+    python -m benchmarks.equivalence compare BEFORE.npz AFTER.npz
 
 ``record`` renders a fixed grid of cases (the synthetic phantoms and, with ``--head``, ``vhf_head`` at
 300 HU at the benchmark's views) with every method and saves each depth image and its statistics.
@@ -9,8 +9,7 @@ Run it once with the code before a change and once after (``PYTHONPATH`` picks t
 ``compare``: coverage and statistics must be identical and depths within ``1e-5`` voxels.
 It uses only ``segments.encode``, ``view.View``, ``render.render`` and ``render.Clip``, which keep
 their signatures, so the same script runs on both sides.  ``tests/test_equivalence.py`` keeps the
-phantom part as a test against ``tests/data/equivalence.npz``, recorded before the refactoring of
-issue 10.
+phantom part as a test against ``tests/data/equivalence.npz`` (see that test for when it was recorded).
 """
 
 from __future__ import annotations

@@ -1,6 +1,11 @@
 """Refactorings leave the renderers alone: every method's depth image and statistics on the phantoms, compared
-with a record made by the code before issue 10's refactoring (``benchmarks/equivalence.py``, which also runs the
-same comparison on vhf_head at the benchmark's views)."""
+with a record (``tests/data/equivalence.npz``, made by ``python -m benchmarks.equivalence record``; the same
+script compares two records of vhf_head at the benchmark's views).
+
+The record was made before issue 10's refactoring, and made again when issue 15 changed two outputs on
+purpose: ``btf`` became a true painter (on rays along faces between voxels it keeps the voxel painted last),
+and discrete rays along the volume's boundary faces are no longer cut short.  Make it again only after an
+intended change, and say in the commit which outputs changed and why."""
 
 from pathlib import Path
 

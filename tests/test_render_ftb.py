@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from reference import agreement, march
+from test_contract import check
 from voxrender import segments
 from voxrender.render import render
 from voxrender.render.btf import render_btf
@@ -63,16 +63,6 @@ def test_ftb_and_btf_give_the_same_depth_image(ball, alpha, beta, scale):
     assert_same(render_ftb(encoded, view)[0], render_btf(encoded, view)[0])
 
 
-# Generic angles: at special ones (cos 60 = 1/2) some rays only touch a cube's edge, which the closed
-# cubes of the contract count and a sampling marcher cannot see.
-@pytest.mark.parametrize("alpha,beta,scale", [(-45, 15, 1.0), (61, 119, 1.0), (31, 11, 1.3), (0, 0, 1.0),
-                                              (-170, 63, 0.7), (100, 200, 3.0)])
-def test_matches_an_independent_ray_marcher(ball, alpha, beta, scale):
-    depth = render(segments.encode(ball), View(alpha, beta, 0, (40, 44), scale), "ftb").depth
-    iou, close = agreement(depth, march(ball, alpha, beta, 0, (40, 44), scale), tolerance=0.03)
-    assert iou >= 0.97 and close >= 0.99  # the marcher misses what a ray meets for less than its step
-
-
 def test_lit_pixels_are_never_tested_again():
     """A solid block seen face on: the back slices find their scanlines full and are skipped."""
     mask = np.ones((12, 8, 8), bool)
@@ -84,22 +74,14 @@ def test_lit_pixels_are_never_tested_again():
 
 
 def test_gamma_by_preimage_matches_the_contract():
+    """Exact wherever the visible box lit one of the nine pre-image pixels around the turned centre (checked
+    pixel by pixel); and such misses are few."""
     zz, yy, xx = np.mgrid[:24, :26, :28]
     blob = ((xx - 13) ** 2 + (yy - 12) ** 2 + (zz - 11) ** 2 <= 100) & ((xx + yy) % 7 != 0)  # grooved ball
     encoded = segments.encode(blob)
     for alpha, beta, gamma in [(30, 20, 35), (-60, 100, -120), (10, 10, 90)]:
         view = View(alpha, beta, gamma, (72, 80), 2.0)
-        iou, close = agreement(render(encoded, view, "ftb").depth, render(encoded, view, "btf").depth)
-        assert iou >= 0.99 and close >= 0.99
-
-
-def test_clip_limits_and_cut_plane_match_a_clipped_mask(ball):
-    view = View(30, 20, 0, (40, 44), 1.5)
-    for clip in [Clip(x=(3, 8)), Clip(y=(None, 5), z=(4, None)), Clip(cut_depth=-1.0), Clip(x=(2, None), cut_depth=0.5)]:
-        clipped = clip.apply_mask(ball, view)
-        expected = render_btf(segments.encode(clipped), view)[0]
-        assert_same(render_ftb(segments.encode(ball), view, clip=clip)[0], expected)
-        assert_same(render_btf(segments.encode(ball), view, clip=clip)[0], expected)
+        assert check(render(encoded, view, "ftb").depth, blob, "ftb", view) <= 0.002 * 72 * 80
 
 
 def test_cutaway_shows_the_inside_of_a_hollow_ball():

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
+from reference import exact
 from voxrender import octree, segments
-from voxrender.render.btf import render_btf
 from voxrender.render.clip import Clip
 from voxrender.render.octree_btf import render_octree_btf, visible_axes
 from voxrender.render.octree_ftb import render_octree_ftb, seen_from_the_front
@@ -38,6 +38,12 @@ def drop_own_counts(stats):
     stats.pop("black_seconds")
 
 
+def assert_same(a, b):
+    """The same coverage and depths within 1e-5 voxels (the two versions compute depths independently)."""
+    assert np.array_equal(np.isfinite(a), np.isfinite(b))
+    assert np.allclose(a[np.isfinite(a)], b[np.isfinite(b)], atol=1e-5)
+
+
 def literal_stats(encoded, view, clip=None):
     depth, stats = render_octree_ftb_literal(encoded, view, clip=clip)
     stats.pop("bitmap_bytes")
@@ -53,7 +59,7 @@ def test_production_equals_the_literal_version_statistics_included(seed):
         expected_depth, expected = literal_stats(encoded, view)
         drop_own_counts(stats)
         assert stats == expected, view
-        assert np.array_equal(depth, expected_depth)
+        assert_same(depth, expected_depth)
 
 
 def test_production_equals_the_literal_version_when_clipped():
@@ -65,8 +71,7 @@ def test_production_equals_the_literal_version_when_clipped():
         expected_depth, expected = literal_stats(encoded, view, clip)
         drop_own_counts(stats)
         assert stats == expected
-        assert np.array_equal(depth, expected_depth)
-        assert np.array_equal(depth, render_btf(encoded, view, clip=clip)[0])
+        assert_same(depth, expected_depth)
 
 
 @pytest.mark.parametrize("mask", [np.ones((4, 4, 4), bool), np.zeros((5, 3, 2), bool), np.ones((1, 1, 1), bool)])
@@ -75,7 +80,8 @@ def test_single_octant_trees(mask):
     depth, stats = render_octree_ftb(segments.encode(mask), view)
     expected_depth, expected = literal_stats(segments.encode(mask), view)
     drop_own_counts(stats)
-    assert stats == expected and np.array_equal(depth, expected_depth)
+    assert stats == expected
+    assert_same(depth, expected_depth)
 
 
 def test_seen_white_leaves_are_those_the_bitmaps_leave_unblocked():
@@ -118,7 +124,7 @@ def test_fewer_faces_than_back_to_front_and_the_same_picture():
         assert stats["pixels_painted"] == np.isfinite(depth).sum()
 
 
-def test_vhf_head_octree_ftb_equals_the_literal_version_and_btf():
+def test_vhf_head_octree_ftb_equals_the_literal_version_and_the_contract():
     from conftest import data_path
     from voxrender import io
 
@@ -130,8 +136,8 @@ def test_vhf_head_octree_ftb_equals_the_literal_version_and_btf():
         expected_depth, expected = literal_stats(encoded, view)
         drop_own_counts(stats)
         assert stats == expected
-        assert np.array_equal(depth, expected_depth)
-        # At (1, -1, 0) and (0, -1, 0) rows of pixel centres lie exactly on faces between slices: the ties
-        # that both versions (and btf) settle by keeping the nearer depth.
-        assert np.array_equal(depth, render_octree_btf(encoded, view)[0])
-        assert np.array_equal(depth, render_btf(encoded, view)[0])
+        assert_same(depth, expected_depth)
+        # At (1, -1, 0) and (0, -1, 0) rows of pixel centres lie exactly on faces between slices: ties, which
+        # both versions settle as the contract does, by keeping the nearer depth.
+        assert_same(depth, render_octree_btf(encoded, view)[0])
+        assert_same(depth, exact(mask, view.alpha, view.beta, view.gamma, view.size, view.scale))

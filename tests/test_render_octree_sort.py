@@ -1,15 +1,12 @@
 import numpy as np
 import pytest
 
-from reference import agreement, march
+from reference import exact
 from voxrender import octree, samples, segments
-from voxrender.render import render
-from voxrender.render.btf import render_btf
 from voxrender.render.clip import Clip
-from voxrender.render.octree_sort import (decode, recode, recode_literal, render_octree_sort,
-                                          render_octree_sort_literal, render_zbuffer, render_zbuffer_literal,
-                                          visible_faces, voxel_codes)
-from voxrender.view import View, angles_from_vpn
+from voxrender.render.octree_sort import decode, recode, render_octree_sort, render_zbuffer, visible_faces, voxel_codes
+from voxrender.render.octree_sort_literal import recode_literal, render_octree_sort_literal, render_zbuffer_literal
+from voxrender.view import View
 
 # The linear-octree paper's Table 2: (x, y, z), Q, Q' for VPN (1.0, 1.1, 1.2), Q' for VPN (-2.0, 1.5, 1.0).
 TABLE_2 = [((3, 3, 3), "00", "00", "60"), ((2, 3, 3), "01", "01", "40"), ((3, 2, 3), "02", "04", "64"),
@@ -51,15 +48,13 @@ def test_recode_orders_front_to_back_for_random_views():
     xyz = decode(codes, 3)
     for vpn in rng.normal(size=(50, 3)):
         order = np.argsort(recode(codes, 3, vpn), kind="stable")
-        distance = -(xyz[order] @ vpn)  # nearer to the viewer = smaller; sorted slabs need not be monotone,
-        # but each voxel must come before every voxel it could hide: any voxel behind it along all axes
+        # Each voxel must come before every voxel it could hide: any voxel behind it along all axes.
         position = np.empty(len(order), int)
         position[order] = np.arange(len(order))
         sign = np.where(vpn >= 0, 1, -1)
         a, b = rng.integers(0, len(codes), (2, 2000))
         behind = np.all((xyz[a] - xyz[b]) * sign >= 0, axis=1) & np.any(xyz[a] != xyz[b], axis=1)
-        assert np.all(position[a][behind] < position[b][behind])
-        assert len(distance) == len(codes)
+        assert behind.sum() > 50 and np.all(position[a][behind] < position[b][behind])
 
 
 def test_visible_faces_table_3():
@@ -73,10 +68,11 @@ def test_production_equals_literal_and_btf(seed):
     mask = rng.random((6, 7, 5)) < 0.4
     encoded = segments.encode(mask)
     view = View(*rng.uniform(-180, 180, 2), rng.uniform(-90, 90), (20, 22), float(rng.uniform(0.5, 2.5)))
-    reference, _ = render_btf(encoded, view)
     clip = Clip(x=(1, 4)) if seed % 2 else None
+    kept = mask.copy()
     if clip:
-        reference, _ = render_btf(encoded, view, clip=clip)
+        kept[:, :, :1] = kept[:, :, 4:] = False
+    reference = exact(kept, view.alpha, view.beta, view.gamma, view.size, view.scale)
     for fast, slow, options in [(render_octree_sort, render_octree_sort_literal, {}),
                                 (render_octree_sort, render_octree_sort_literal, {"order": "painter"}),
                                 (render_zbuffer, render_zbuffer_literal, {})]:
@@ -85,12 +81,4 @@ def test_production_equals_literal_and_btf(seed):
         assert stats == literal_stats
         for other in (literal, reference):
             assert np.array_equal(np.isfinite(depth), np.isfinite(other))
-            assert np.allclose(depth[np.isfinite(depth)], other[np.isfinite(other)], atol=1e-6)
-
-
-def test_papers_vpns_against_the_marcher(ball):
-    for vpn in [(1, -2, 1), (-1, -2, 1), (1, -1, 0), (0, -1, 0)]:
-        alpha, beta, gamma = angles_from_vpn(vpn)
-        depth = render(segments.encode(ball), View(alpha, beta, gamma, (40, 44), 1.3), "octree-sort").depth
-        iou, close = agreement(depth, march(ball, alpha, beta, gamma, (40, 44), 1.3), tolerance=0.03)
-        assert iou >= 0.97 and close >= 0.99
+            assert np.allclose(depth[np.isfinite(depth)], other[np.isfinite(other)], atol=1e-5)

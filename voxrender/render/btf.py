@@ -7,24 +7,26 @@ cube), not as one pixel, so no view at any scale has holes; each painted pixel
 takes the depth where its ray enters the cube, so the result is the depth image
 of the view contract.
 
-:func:`render_btf` paints one slice at a time with array operations: inside one
-slice the last voxel painted at a pixel is the nearest one, so the slice's
-paint is its per-pixel minimum depth, and that is painted over the image.
-:func:`render_btf_literal` paints voxel by voxel, as the paper does; it is the
-test oracle.
+:func:`render_btf` paints one slice at a time with array operations: the slice's
+voxels are put in back-to-front order and, at every pixel, the last of them to
+cover it wins, as if painted one by one; the slice is then painted over the
+image.  :func:`render_btf_literal` paints voxel by voxel with the geometry of
+:mod:`.oracle`, as the paper does; it is the test oracle.  Both are painters:
+the order decides, and nothing compares depths.
 
 Ties: in back-to-front order a later voxel is never farther along a ray than an earlier one,
 except on a ray that only touches two closed cubes on a shared face or edge (pixel centres
-exactly on voxel boundaries, in axis-aligned views): slices side by side have no depth order
-there.  Both versions keep the nearer depth when painting, which changes nothing elsewhere and
-keeps the contract there (painting over gave the farther voxel on a third of such a view's pixels).
+exactly on voxel boundaries, in axis-aligned views): such cubes have no depth order, and the
+painter keeps the one painted last, which may be the farther.  There the picture differs from
+the contract's depth image (which takes the nearer); the tests check those pixels apart.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .geometry import EPS, paint_boxes, ray_box_entry, reach
+from . import oracle
+from .geometry import paint_boxes
 
 __all__ = ["render_btf", "render_btf_literal", "back_to_front", "expand_runs", "slice_runs"]
 
@@ -87,20 +89,23 @@ def render_btf(segments, view, progress=None, clip=None):
     >>> depth[1:3, 1:3].tolist(), stats["voxels_projected"]
     ([[-1.0, -1.0], [-1.0, -1.0]], 8)
     """
-    matrix = view.matrix
+    direction = view.matrix[2]
     height, width = view.size
     image = np.full(height * width, np.inf)
-    buffer = np.full(height * width, np.inf)
+    last = np.full(height * width, -1)
     stats = {"slices": 0, "rows": 0, "voxels_projected": 0, "pixel_writes": 0}
-    order = back_to_front(segments.shape[0], matrix[2, 2])
+    order = back_to_front(segments.shape[0], direction[2])
     for z in (progress(order, len(order), "btf") if progress else order):
         y, x = expand_runs(*slice_runs(segments, z, view, clip))
         if not len(x):
             continue
-        pixels, depths, _, _ = paint_boxes(view, segments.shape, x, y, z)
-        np.minimum.at(buffer, pixels, depths)
-        image[pixels] = np.minimum(image[pixels], buffer[pixels])   # nearer, or a tie: see the module
-        buffer[pixels] = np.inf
+        # Rows, and voxels within a row, from the farthest: the order a painter would paint them in.
+        painting = np.lexsort((-x if direction[0] > 0 else x, -y if direction[1] > 0 else y))
+        pixels, depths, owner, _ = paint_boxes(view, segments.shape, x[painting], y[painting], z)
+        np.maximum.at(last, pixels, owner)                # the voxel painted last at each pixel
+        wins = owner == last[pixels]
+        image[pixels[wins]] = depths[wins]                # painted over whatever earlier slices left
+        last[pixels] = -1
         stats["slices"] += 1
         stats["rows"] += len(np.unique(y))
         stats["voxels_projected"] += len(x)
@@ -111,40 +116,34 @@ def render_btf(segments, view, progress=None, clip=None):
 def render_btf_literal(segments, view, clip=None):
     """Back-to-front rendering one voxel at a time, as the paper describes it (the test oracle).
 
-    Slices, rows within a slice and voxels within a row are visited from the
-    farthest to the nearest; each voxel overwrites the pixels its cube covers.
+    Slices, rows within a slice and voxels within a row are visited from the farthest to the nearest;
+    each voxel overwrites the pixels its cube covers (:func:`.oracle.box_pixels`).
     """
-    matrix = view.matrix
-    height, width = view.size
+    r = oracle.rotation(view.alpha, view.beta, view.gamma)
+    size = tuple(view.size)
     nz, ny, nx = segments.shape
-    columns, rows = view.pixel_centres()
-    rx, ry = reach(matrix, (0.5, 0.5, 0.5))
-    image = np.full((height, width), np.inf)
+    centre = ((nx - 1) / 2, (ny - 1) / 2, (nz - 1) / 2)
+    image = np.full(size, np.inf)
     stats = {"slices": 0, "rows": 0, "voxels_projected": 0, "pixel_writes": 0}
-    for z in back_to_front(nz, matrix[2, 2]):
+
+    def farthest_first(n, component):          # the viewer looks along +Z': high indices are far when it grows
+        return list(range(n - 1, -1, -1)) if component > 0 else list(range(n))
+
+    for z in farthest_first(nz, r[2][2]):
         slice_has_voxels = False
-        for y in back_to_front(ny, matrix[2, 1]):
-            starts, ends = segments.row(z, y)
-            if clip is not None and clip.active:
-                keep, starts, ends = clip.apply_runs(z, y, starts, ends, view, segments.shape)
-                starts, ends = starts[keep], ends[keep]
-            if not len(starts):
+        for y in farthest_first(ny, r[2][1]):
+            runs = [kept for start, end in zip(*segments.row(z, y))
+                    if (kept := oracle.clip_run(clip, r, z, y, start, end, centre))]
+            if not runs:
                 continue
             slice_has_voxels = True
             stats["rows"] += 1
-            voxels = [x for s, e in zip(starts, ends) for x in range(s, e + 1)]
-            for x in (reversed(voxels) if matrix[2, 0] > 0 else voxels):
-                xc, yc, zc = (float(c) for c in view.to_image(x, y, z, segments.shape))
+            voxels = [x for start, end in runs for x in range(int(start), int(end) + 1)]
+            for x in (voxels[::-1] if r[2][0] > 0 else voxels):
                 stats["voxels_projected"] += 1
-                for j in range(height):
-                    if abs(rows[j] - yc) > ry + EPS:
-                        continue
-                    for i in range(width):
-                        if abs(columns[i] - xc) > rx + EPS:
-                            continue
-                        hit, entry = ray_box_entry(columns[i] - xc, rows[j] - yc, matrix)
-                        if hit:
-                            image[j, i] = min(image[j, i], zc + entry)
-                            stats["pixel_writes"] += 1
+                for row, column, depth in oracle.box_pixels(r, (x, y, z), (0.5, 0.5, 0.5), centre, size,
+                                                            view.scale):
+                    image[row, column] = depth                # painted over what is behind
+                    stats["pixel_writes"] += 1
         stats["slices"] += slice_has_voxels
     return image.astype(np.float32), stats

@@ -6,13 +6,17 @@ each scanline its parallelepipeds reach, MERGE (Fig. 6) walks the row's
 projected segments and the unlit segments together and takes one of eight
 actions each step.  Slow on purpose: it is what :func:`~voxrender.render.ftb.render_ftb`
 is checked against, depth image and statistics alike.
+
+It shares no geometry with the vectorised version: every parallelepiped is scan-converted
+by :mod:`.oracle` (its projected edges crossed with each scanline) and every lit pixel's
+depth is the oracle's slab test, one pixel at a time.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .ftb import initial_unlit, new_stats, object_box, plan_screen
+from . import oracle
 
 __all__ = ["render_ftb_literal", "Unlit"]
 
@@ -93,46 +97,86 @@ def _delete(chains, line, previous, k):
 
 
 def render_ftb_literal(segments, view, clip=None):
-    """Front-to-back rendering with linked lists, one segment and one MERGE case at a time."""
-    plan = plan_screen(segments, view)
-    height, width = view.size
-    nz, ny, _ = segments.shape
-    stats = new_stats()
+    """Front-to-back rendering with linked lists, one segment and one MERGE case at a time.
+
+    The view's gamma is ignored (it turns the pre-image afterwards); the statistics are those of
+    :func:`~voxrender.render.ftb.render_ftb`.
+    """
+    r = oracle.rotation(view.alpha, view.beta)
+    size, scale = tuple(view.size), view.scale
+    height, width = size
+    nz, ny, nx = segments.shape
+    centre = ((nx - 1) / 2, (ny - 1) / 2, (nz - 1) / 2)
+    direction = r[2]
+
+    def front_to_back(n, component):           # the viewer looks along +Z': low indices first when it grows
+        return list(range(n)) if component > 0 else list(range(n - 1, -1, -1))
+
+    outer_is_z = abs(r[1][1]) >= abs(r[1][2])   # "roles interchanged" when rows cross scanlines faster
+    z_order, y_order = front_to_back(nz, direction[2]), front_to_back(ny, direction[1])
+    x_ascending = direction[0] >= 0
+    mirror = x_ascending != (r[0][0] >= 0)      # the walk meets the row's segments right to left
+
+    def walk(first, last):
+        return (width - 1 - last, width - 1 - first) if mirror else (first, last)
+
+    stats = {"slices_read": 0, "rows_read": 0, "segments_read": 0, "merge_calls": 0, "segments_merged": 0,
+             "cases": {}, "pixels_lit": 0, "unlit_segments_start": 0, "unlit_segments_peak": 0,
+             "unlit_segments_end": 0, "scanlines_skipped_full": 0, "rows_skipped_full": 0}
     cases = {c: 0 for c in range(1, 9)}
     image = np.full((height, width), np.inf)
     chains = [None] * height
-    for line, lo, hi in zip(*initial_unlit(plan, object_box(segments, clip))):
-        chains[int(line)] = Unlit(int(lo), int(hi))
+
+    # The dynamic screen starts as the projection of the object's bounding box (within the clip limits).
+    (z0, z1), (y0, y1), (x0, x1) = segments.bounding_box()
+    limits = [[x0, x1], [y0, y1], [z0, z1]]
+    for bounds, pair in zip((clip.x, clip.y, clip.z) if clip is not None else (None,) * 3, limits):
+        if bounds is not None:
+            pair[0] = pair[0] if bounds[0] is None else max(pair[0], bounds[0])
+            pair[1] = pair[1] if bounds[1] is None else min(pair[1], bounds[1] - 1)
+    if all(lo <= hi for lo, hi in limits):
+        box_centre = tuple((lo + hi) / 2 for lo, hi in limits)
+        half = tuple((hi - lo + 1) / 2 for lo, hi in limits)
+        first, last = oracle.box_scanlines(r, box_centre, half, centre, size, scale)
+        for line in range(max(first, 0), min(last, height - 1) + 1):
+            y = oracle.pixel_centre(0, line, size, scale)[1]
+            span = oracle.box_scanline_span(r, box_centre, half, centre, y, size, scale)
+            if span is not None:
+                chains[line] = Unlit(*walk(*span))
     stats["unlit_segments_start"] = stats["unlit_segments_peak"] = _count(chains)
 
     def paint(i, j, box):
-        line, xc, yc, zc, half_x = box
+        line, box_centre, half = box
+        y = oracle.pixel_centre(0, line, size, scale)[1]
         for walk_x in range(i, j + 1):
-            image[line, plan.column(walk_x)] = plan.depth(line, walk_x, xc, yc, zc, half_x)
+            column = width - 1 - walk_x if mirror else walk_x
+            x = oracle.pixel_centre(column, line, size, scale)[0]
+            image[line, column] = oracle.ray_entry(r, x, y, box_centre, half, centre)
             stats["pixels_lit"] += 1
 
-    for outer in plan.outer_order:
+    for outer in (z_order if outer_is_z else y_order):
         slice_read = False
-        for inner in plan.inner_order:
-            z, y = (outer, inner) if plan.outer_is_z else (inner, outer)
-            starts, ends = segments.row(int(z), int(y))
-            if not plan.x_ascending:
-                starts, ends = starts[::-1], ends[::-1]
-            if clip is not None and clip.active:
-                keep, starts, ends = clip.apply_runs(z, y, starts, ends, plan.view, segments.shape)
-                starts, ends = starts[keep], ends[keep]
-            if not len(starts):
+        for inner in (y_order if outer_is_z else z_order):
+            z, y = (outer, inner) if outer_is_z else (inner, outer)
+            runs = list(zip(*segments.row(z, y)))
+            if not x_ascending:
+                runs = runs[::-1]
+            runs = [kept for start, end in runs if (kept := oracle.clip_run(clip, r, z, y, start, end, centre))]
+            if not runs:
                 continue
             slice_read = True
             stats["rows_read"] += 1
-            stats["segments_read"] += len(starts)
-            xc, yc, zc, half_x = plan.centres(z, y, starts, ends)
-            first_line, last_line = plan.scanlines(yc[0])
+            stats["segments_read"] += len(runs)
+            boxes = [(((start + end) / 2, y, z), ((end - start + 1) / 2, 0.5, 0.5)) for start, end in runs]
+            first, last = oracle.box_scanlines(r, *boxes[0], centre, size, scale)   # Y' does not vary along x
             calls = full = 0
-            for line in range(int(first_line), int(last_line) + 1):
-                lows, highs = plan.spans(np.full(len(xc), line), xc, yc, half_x)
-                spans = [(int(a), int(b), (line, xc[k], yc[k], zc[k], half_x[k]))
-                         for k, (a, b) in enumerate(zip(lows, highs)) if a <= b]
+            for line in range(max(first, 0), min(last, height - 1) + 1):
+                scan_y = oracle.pixel_centre(0, line, size, scale)[1]
+                spans = []
+                for box_centre, half in boxes:
+                    span = oracle.box_scanline_span(r, box_centre, half, centre, scan_y, size, scale)
+                    if span is not None:
+                        spans.append((*walk(*span), (line, box_centre, half)))
                 spans.sort(key=lambda span: span[0])  # walk order; stable, so ties keep front-to-back order
                 if not spans:
                     continue

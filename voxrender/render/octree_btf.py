@@ -9,10 +9,10 @@ whatever is painted later, i.e. nearer.
 A face is scan-converted exactly: every pixel whose ray meets the closed square gets the
 depth where the ray meets it.  :func:`render_octree_btf` paints the faces of all black
 octants of one size at once and keeps the nearest depth per pixel (the result of painting
-back to front); :func:`render_octree_btf_literal` recurses and paints face by face (the
-oracle).  Statistics follow Zhao and Davis's Tables II and III: octants visited by colour,
+back to front); :func:`.octree_btf_literal.render_octree_btf_literal` recurses and paints
+face by face.  Statistics follow Zhao and Davis's Tables II and III: octants visited by colour,
 black faces scan-converted, scanlines and pixels accumulated; the vectorised version also
-times its work on black octants (``black_seconds``).
+times its work on black octants (``black_seconds``).  The oracle is :mod:`.octree_btf_literal`.
 """
 
 from __future__ import annotations
@@ -25,8 +25,7 @@ from .. import octree
 from ..view import vpn_from_angles
 from .geometry import paint_boxes
 
-__all__ = ["render_octree_btf", "render_octree_btf_literal", "front_to_back_children", "visible_axes",
-           "paint_faces", "region_octree"]
+__all__ = ["render_octree_btf", "front_to_back_children", "visible_axes", "paint_faces", "region_octree"]
 
 
 def visible_axes(vpn):
@@ -126,34 +125,4 @@ def render_octree_btf(segments, view, progress=None, clip=None, tree=None):
             stats["pixels_accumulated"] += len(pixels)
     stats["pixel_writes"] = stats["pixels_accumulated"]
     stats["black_seconds"] = time.perf_counter() - started   # Table II's time in black octants: all of it
-    return image.reshape(height, width).astype(np.float32), stats
-
-
-def render_octree_btf_literal(segments, view, clip=None, tree=None):
-    """The oracle: recursive back-to-front traversal, black octants' faces painted one by one, overwriting."""
-    tree = region_octree(segments, view, clip, tree)
-    vpn = vpn_from_angles(view.alpha, view.beta, view.gamma)
-    height, width = view.size
-    image = np.full(height * width, np.inf)
-    stats = _new_stats(tree)
-    back_to_front = front_to_back_children(vpn)[::-1]
-    names = {octree.WHITE: "white", octree.BLACK: "black", octree.GREY: "grey"}
-
-    def visit(node):
-        color = int(tree.color[node])
-        stats[f"{names[color]}_visited"] += 1
-        if color == octree.BLACK:
-            for axis, side in visible_axes(vpn):
-                pixels, depths, _, scanlines = paint_faces(tree, np.array([node]), axis, side, view, segments.shape)
-                for pixel, depth in zip(pixels, depths):   # painted in order: later (nearer) overwrites,
-                    image[pixel] = min(image[pixel], depth)  # but a ray along a shared edge keeps the nearer
-                stats["black_faces"] += 1
-                stats["scanlines_accumulated"] += scanlines
-                stats["pixels_accumulated"] += len(pixels)
-                stats["pixel_writes"] += len(pixels)
-        elif color == octree.GREY:
-            for label in back_to_front:
-                visit(int(tree.first_child[node]) + label)
-
-    visit(0)
     return image.reshape(height, width).astype(np.float32), stats

@@ -1,7 +1,8 @@
 """Zhao and Davis's front-to-back octree display with blocking quadtrees, as the paper writes it.
 
 This is the literal, recursive implementation: the oracle for the vectorised version
-(:mod:`.octree_ftb`, registered as ``octree-ftb``).
+(:mod:`.octree_ftb`, registered as ``octree-ftb``).  It takes nothing from the production
+renderers but the region octree: faces are scan-converted by :mod:`.oracle`.
 
 One blocking quadtree per potentially visible axis (the seven viewing classes XYZ, XY,
 XZ, YZ, X, Y, Z are the non-zero components of the VPN), each stored as a *blocking
@@ -28,9 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import octree
-from ..view import vpn_from_angles
-from .octree_btf import front_to_back_children, paint_faces, region_octree, visible_axes
-from .octree_ftb import new_stats
+from .octree_btf_literal import FaceScan, children_front_to_back, literal_tree, visible_faces
 
 __all__ = ["render_octree_ftb_literal", "BlockingBitmap", "QUAD_TAB", "ind_tab"]
 
@@ -88,22 +87,24 @@ def render_octree_ftb_literal(segments, view, clip=None, arrivals=None, tree=Non
     colour, black faces scan-converted, scanlines and pixels accumulated, pixels painted.
     ``arrivals``, a dict, receives for every visited node the bitmap value per axis it found.
     """
-    tree = region_octree(segments, view, clip, tree)
-    vpn = vpn_from_angles(view.alpha, view.beta, view.gamma)
-    axes = visible_axes(vpn)
-    order = front_to_back_children(vpn)
+    tree = literal_tree(segments, view, clip, tree)
+    scan = FaceScan(tree, view, segments.shape)
+    vpn = scan.vpn()
+    axes = visible_faces(vpn)
+    order = children_front_to_back(vpn)
     height, width = view.size
     image = np.full(height * width, np.inf)
-    stats = new_stats()
+    stats = {f"{c}_{what}": 0 for c in ("white", "black", "grey") for what in ("visited", "blocked")}
+    stats.update(black_faces=0, scanlines_accumulated=0, pixels_accumulated=0, pixels_painted=0)
     bitmaps = {axis: BlockingBitmap(tree.n) for axis, _ in axes}
     stats["bitmap_bytes"] = sum(len(b.bits) for b in bitmaps.values())
 
     def scan_convert(node, axis, side):
-        pixels, depths, _, scanlines = paint_faces(tree, np.array([node]), axis, side, view, segments.shape)
+        pixels, scanlines = scan.face(node, axis, side)
         stats["black_faces"] += 1
         stats["scanlines_accumulated"] += scanlines
         stats["pixels_accumulated"] += len(pixels)
-        for pixel, depth in zip(pixels, depths):
+        for pixel, depth in pixels:
             if not np.isfinite(image[pixel]):          # fill un-painted pixels
                 image[pixel] = depth
                 stats["pixels_painted"] += 1

@@ -27,11 +27,10 @@ import numpy as np
 
 from .. import octree
 from ..view import vpn_from_angles
-from .geometry import EPS, paint_boxes, ray_box_entry, reach
+from .geometry import paint_boxes
 from .octree_btf import region_octree
 
-__all__ = ["recode", "recode_literal", "voxel_codes", "decode", "visible_faces", "render_octree_sort",
-           "render_octree_sort_literal", "render_zbuffer", "render_zbuffer_literal"]
+__all__ = ["recode", "voxel_codes", "decode", "visible_faces", "render_octree_sort", "render_zbuffer"]
 
 _AXIS_BIT = {0: 0, 1: 1, 2: 2}  # x -> R (bit 0 of a digit), y -> M (bit 1), z -> L (bit 2)
 
@@ -60,16 +59,6 @@ def recode(codes, n, vpn):
             string = ~string & ((1 << n) - 1)
         result = (result << n) | string
     return result
-
-
-def recode_literal(code, n, vpn):
-    """Q -> Q' for one code, bit by bit as the paper writes it (the oracle for :func:`recode`)."""
-    digits = [(code >> (3 * level)) & 7 for level in range(n - 1, -1, -1)]
-    bits = {2: [d >> 2 & 1 for d in digits], 1: [d >> 1 & 1 for d in digits], 0: [d & 1 for d in digits]}
-    text = ""
-    for axis in _axis_order(vpn):
-        text += "".join(str(1 - b if vpn[axis] < 0 else b) for b in bits[axis])
-    return int(text, 2) if text else 0
 
 
 def voxel_codes(tree):
@@ -219,72 +208,3 @@ def render_zbuffer(segments, view, progress=None, clip=None, count_writes=True, 
     before = np.concatenate([[np.iinfo(np.int64).max], running[:-1]])
     passes = shifted < before
     return image.reshape(height, width).astype(np.float32), _stats(tree, codes, vpn, pixels, passes.sum())
-
-
-def _paint_literal(view, shape, xyz, visit):
-    """Call ``visit(pixel, depth)`` for every pixel each voxel's cube covers, voxel by voxel."""
-    matrix = view.matrix
-    height, width = view.size
-    rx, ry = reach(matrix, (0.5, 0.5, 0.5))
-    columns, rows = view.pixel_centres()
-    for x, y, z in xyz:
-        xc, yc, zc = (float(c) for c in view.to_image(x, y, z, shape))
-        for j in np.flatnonzero(np.abs(rows - yc) <= ry + EPS):
-            for i in np.flatnonzero(np.abs(columns - xc) <= rx + EPS):
-                hit, entry = ray_box_entry(columns[i] - xc, rows[j] - yc, matrix)
-                if hit:
-                    visit(j * width + i, zc + entry)
-
-
-def render_octree_sort_literal(segments, view, clip=None, order="ftb", tree=None):
-    """The oracle: codes broken and recoded one by one, Python's sort, voxels painted one at a time."""
-    tree, _ = _voxels(segments, view, clip, tree)
-    n = tree.n
-    vpn = vpn_from_angles(view.alpha, view.beta, view.gamma)
-    codes = []
-    for row in octree.linear_octree(tree):
-        known = [int(d) for d in row if d != octree.X_MARKER]
-        prefix = 0
-        for d in known:
-            prefix = prefix * 8 + d
-        free = n - len(known)
-        codes += [(prefix << (3 * free)) + k for k in range(8 ** free)]
-    ordered = sorted(codes, key=lambda q: recode_literal(q, n, vpn))
-    if order == "painter":
-        ordered = ordered[::-1]
-    height, width = view.size
-    image = np.full(height * width, np.inf)
-    counts = {"fragments": 0, "writes": 0}
-
-    def visit(pixel, depth):
-        counts["fragments"] += 1
-        if order == "painter" or not np.isfinite(image[pixel]):
-            image[pixel] = depth
-            counts["writes"] += 1
-
-    _paint_literal(view, tuple(segments.shape), decode(np.array(ordered, np.int64), n), visit)
-    stats = {"voxels": len(codes), "linear_octree_codes": int((tree.color == octree.BLACK).sum()),
-             "faces": len(codes) * len(visible_faces(vpn)), "fragments": counts["fragments"],
-             "pixel_writes": counts["writes"]}
-    return image.reshape(height, width).astype(np.float32), stats
-
-
-def render_zbuffer_literal(segments, view, clip=None, tree=None):
-    """The oracle: voxels in code order, every fragment depth-tested."""
-    tree, codes = _voxels(segments, view, clip, tree)
-    vpn = vpn_from_angles(view.alpha, view.beta, view.gamma)
-    height, width = view.size
-    image = np.full(height * width, np.inf)
-    counts = {"fragments": 0, "writes": 0}
-
-    def visit(pixel, depth):
-        counts["fragments"] += 1
-        if depth < image[pixel]:
-            image[pixel] = depth
-            counts["writes"] += 1
-
-    _paint_literal(view, tuple(segments.shape), decode(codes, tree.n), visit)
-    stats = {"voxels": int(len(codes)), "linear_octree_codes": int((tree.color == octree.BLACK).sum()),
-             "faces": int(len(codes) * len(visible_faces(vpn))), "fragments": counts["fragments"],
-             "pixel_writes": counts["writes"]}
-    return image.reshape(height, width).astype(np.float32), stats

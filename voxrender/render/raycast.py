@@ -55,25 +55,32 @@ def _cast(mask, band, view, connectivity, progress=None):
     height, width = view.size
     big_x, big_y = np.meshgrid(*view.pixel_centres())
     origins = np.stack(view.to_object(big_x.ravel(), big_y.ravel(), 0.0, mask.shape), axis=1)
-    direction = np.where(np.abs(matrix[2]) < 1e-12, 1e-12, matrix[2])
-    # Clip every ray to the volume's box of cubes.
+    # Clip every ray to the volume's box of cubes; along an axis it does not move, it is inside or not at all.
+    parallel = np.abs(matrix[2]) < 1e-12
+    direction = np.where(parallel, 1.0, matrix[2])
     low, high = -0.5 - origins, np.array([nx, ny, nz]) - 0.5 - origins
-    near, far = np.minimum(low / direction, high / direction), np.maximum(low / direction, high / direction)
+    near = np.where(parallel, -np.inf, np.minimum(low / direction, high / direction))
+    far = np.where(parallel, np.inf, np.maximum(low / direction, high / direction))
+    outside = (parallel & ((low > 1e-9) | (high < -1e-9))).any(axis=1)
     t_in, t_out = near.max(axis=1), far.min(axis=1)
-    rays = np.flatnonzero(t_in < t_out)
+    rays = np.flatnonzero((t_in < t_out) & ~outside)
     inset = 1e-7 * np.sign(t_out[rays] - t_in[rays])
     starts = origins[rays] + (t_in[rays] + inset)[:, None] * matrix[2]
     ends = origins[rays] + (t_out[rays] - inset)[:, None] * matrix[2]
     # A ray that runs exactly along a face between two voxel columns meets both closed cubes (the
     # contract); the discrete line follows the upper one, and the lower one is looked up beside it.
+    # On the volume's top face there is no upper one: the line follows the lower, with nothing beside it.
     fraction = (starts + 0.5) % 1.0
     on_face = (np.abs(matrix[2]) < 1e-12) & (np.minimum(fraction, 1 - fraction) < 1e-9)
+    top = np.array([nx, ny, nz]) - 0.5
     starts = np.where(on_face, np.round(starts + 0.5) - 0.5, starts)
-    ends = np.where(on_face, starts, ends)
-    stepper = Stepper(np.clip(starts, -0.5 + 1e-9, np.array([nx, ny, nz]) - 0.5 - 1e-9), ends)
+    between = on_face & (starts < top - 0.5)
+    starts = np.clip(starts, -0.5 + 1e-9, top - 1e-9)
+    ends = np.where(on_face, starts, ends)              # along such an axis the ray does not move
+    stepper = Stepper(starts, ends)
     twins = []
     for offset in (np.array(o) for o in np.ndindex(2, 2, 2) if any(o)):
-        rays_on = np.all(on_face[:, offset > 0], axis=1)
+        rays_on = np.all(between[:, offset > 0], axis=1)
         if rays_on.any():
             twins.append((-offset, rays_on))
     hit_voxel = np.full((height * width, 3), -1, np.int64)
