@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN = $(VENV)/bin
 
-.PHONY: demo test benchmark samples golden clean
+.PHONY: demo test benchmark samples golden mutants clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -28,6 +28,10 @@ samples: $(VENV)/.installed
 # Rewrite the golden images after an intended change of the pictures (review them before committing).
 golden: $(VENV)/.installed
 	$(BIN)/python -m tests.golden
+
+# The mutation gate: hand-written bugs, one at a time; fails if the suite misses one (a few minutes).
+mutants: $(VENV)/.installed
+	$(BIN)/python tests/mutants.py
 
 clean:
 	rm -rf $(VENV) samples demo.png .pytest_cache

@@ -195,13 +195,19 @@ def bench_scaling(repeat, sizes=SCALING_SIZES, methods=SCALING_METHODS):
             for method in methods:
                 row[method] = median_seconds(lambda: rendered(encoded, view, method), repeat)[0]
             rows.append(row)
-        exponents = {method: float(np.polyfit(np.log(sizes), np.log([r[method] for r in rows]), 1)[0])
-                     for method in methods}
-        # The slope between the two largest sizes, where fixed per-slice costs matter least.
-        last = {method: float(np.log(rows[-1][method] / rows[-2][method]) / np.log(sizes[-1] / sizes[-2]))
-                for method in methods}
-        result[kind] = {"rows": rows, "exponents": exponents, "exponents_largest": last}
+        result[kind] = {"rows": rows, **fit_exponents(rows, methods)}
     return result
+
+
+def fit_exponents(rows, methods):
+    """The exponent of N in each method's time: a least-squares fit over all rows (``exponents``) and the
+    slope between the two largest N, where fixed per-slice costs matter least (``exponents_largest``)."""
+    sizes = [row["n"] for row in rows]
+    exponents = {method: float(np.polyfit(np.log(sizes), np.log([r[method] for r in rows]), 1)[0])
+                 for method in methods}
+    last = {method: float(np.log(rows[-1][method] / rows[-2][method]) / np.log(sizes[-1] / sizes[-2]))
+            for method in methods}
+    return {"exponents": exponents, "exponents_largest": last}
 
 
 def _views_table(rows, names):

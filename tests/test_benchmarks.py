@@ -7,12 +7,20 @@ from voxrender import segments
 from voxrender.view import View
 
 
-def test_scaling_section_runs_and_fits_exponents():
+def test_scaling_section_runs_on_the_phantoms():
     result = bench.bench_scaling(repeat=1, sizes=(12, 16, 20))
     for kind in ("sphere", "gyroid"):
-        assert [row["n"] for row in result[kind]["rows"]] == [12, 16, 20]
+        rows = result[kind]["rows"]
+        assert [row["n"] for row in rows] == [12, 16, 20]
+        assert [row["voxels"] for row in rows] == [int(bench.phantom(kind, n).sum()) for n in (12, 16, 20)]
         assert set(result[kind]["exponents"]) == set(bench.SCALING_METHODS)
-        assert all(np.isfinite(list(result[kind]["exponents"].values())))
+
+
+def test_exponents_of_a_power_law():
+    rows = [{"n": n, "a": 2.0 * n ** 1.5, "b": 0.1 * n ** 3} for n in (16, 32, 64, 100)]
+    fitted = bench.fit_exponents(rows, ["a", "b"])
+    for key in ("exponents", "exponents_largest"):
+        assert np.allclose([fitted[key]["a"], fitted[key]["b"]], [1.5, 3.0])
 
 
 def test_phantoms():

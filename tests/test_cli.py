@@ -125,15 +125,11 @@ def test_vpn_and_view_options(tmp_path, cube_folder):
     assert np.array_equal(np.load(a), np.load(b))
 
 
-def test_samples_and_demo_match_the_golden_image(tmp_path):
+def test_demo_writes_the_samples(tmp_path):
     result = run("demo", "-o", tmp_path / "demo.png", "--samples-folder", tmp_path / "samples")
     assert result.exit_code == 0, result.output
     assert {p.name for p in (tmp_path / "samples").iterdir()} == {"sphere", "torus", "shell", "staircase", "cylinder"}
-    picture = iio.imread(tmp_path / "demo.png").astype(int)
-    golden = iio.imread(ROOT / "tests" / "golden" / "demo.png").astype(int)
-    assert picture.shape == golden.shape
-    difference = np.abs(picture - golden)
-    assert difference.mean() < 0.5 and (difference <= 2).mean() > 0.995
+    assert iio.imread(tmp_path / "demo.png").shape == (256, 256, 3)     # its picture: tests/test_golden.py
 
 
 def test_samples_render_at_their_threshold(tmp_path):
@@ -292,4 +288,17 @@ def test_issue_commands_on_real_data(tmp_path):
                  ["render", tmp_path / "skull.vxs", "--size", 128, "-o", tmp_path / "skull2.png"]):
         result = run(*args)
         assert result.exit_code == 0, (args, result.output)
-    assert np.array_equal(iio.imread(tmp_path / "skull.png"), iio.imread(tmp_path / "skull2.png"))
+        if args[0] == "info":
+            assert "dimensions xyz: [512, 512, 234]" in result.output and "units: HU" in result.output
+        if args[0] == "encode":
+            assert "592293 in the object" in result.output and "threshold 300" in result.output
+    skull, face, head = (iio.imread(tmp_path / name) for name in ("skull.png", "f.png", "head.png"))
+    assert np.array_equal(skull, iio.imread(tmp_path / "skull2.png"))     # the .vxs renders the same picture
+    for picture in (skull, face, head):
+        covered = picture.any(axis=2)
+        rows, columns = np.nonzero(covered)
+        assert picture.shape == (128, 128, 3) and covered.sum() > 400
+        # the head is framed in the middle and shaded: many grey levels, not a silhouette
+        assert abs(columns.mean() - 63.5) < 12 and abs(rows.mean() - 63.5) < 20
+        assert len(np.unique(picture[covered][:, 0])) > 50
+    assert (face.any(axis=2)).sum() > (skull.any(axis=2)).sum()          # skin hides the skull's openings

@@ -95,3 +95,12 @@ def test_threshold_must_be_finite(threshold):
 def test_bad_voxel_size():
     with pytest.raises(InputError):
         prep.binarize(Volume(np.ones((2, 2, 2)), (1, 1, 2)), 0, voxel=-1)
+
+
+@pytest.mark.parametrize("spacing", [(1, 1, 1), (1, 1, 2)])
+def test_a_value_equal_to_the_threshold_is_in_the_object(spacing):
+    """The object is value >= threshold, on the cubic grid and through resampling alike."""
+    values = np.zeros((4, 5, 6))
+    values[1:3, 2, 2:4] = 300
+    mask, _ = prep.binarize(Volume(values, spacing), 300)
+    assert mask.sum() == (4 if spacing == (1, 1, 1) else 2 * 3)

@@ -1,0 +1,135 @@
+"""The mutation gate (``make mutants``): small deliberate bugs, one at a time, each of which the suite must catch.
+
+Every mutant is one exact edit of one production file, applied to a scratch copy of the project (with
+``../shared`` beside it, as in CI).  The whole suite runs against each; a mutant that no test fails on
+*survives*, and the gate fails.  It prints which tests caught each mutant, so a newcomer sees what guards
+what.  It takes a few minutes (the suite once per mutant), so it is not part of ``make test``.
+
+    python tests/mutants.py [NAME ...]        # all mutants, or those whose name contains NAME
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@dataclass(frozen=True)
+class Mutant:
+    name: str
+    path: str
+    old: str
+    new: str
+
+
+MUTANTS = [
+    Mutant("pixel-centre offset", "voxrender/view.py",
+           "return (columns + 0.5 - width / 2) / self.scale", "return (columns + 0.4 - width / 2) / self.scale"),
+    Mutant("span edge one pixel short", "voxrender/render/geometry.py",
+           "last = np.minimum(np.floor(right + EPS).astype(np.int64), width - 1)",
+           "last = np.minimum(np.floor(right + EPS).astype(np.int64) - 1, width - 1)"),
+    Mutant("ftb depth +0.5", "voxrender/render/ftb.py",
+           "_, entry = ray_box_entry(x - xc, y - yc, self.matrix, half_x)\n        return zc + entry",
+           "_, entry = ray_box_entry(x - xc, y - yc, self.matrix, half_x)\n        return zc + entry + 0.5"),
+    Mutant("MERGE comparison (case 1)", "voxrender/render/ftb.py",
+           "case = np.where(key_last < low, 1, 2 + inside + 2 * ends_at)",
+           "case = np.where(key_last <= low, 1, 2 + inside + 2 * ends_at)"),
+    Mutant("painter order reversed", "voxrender/render/btf.py",
+           "order = back_to_front(segments.shape[0], direction[2])",
+           "order = back_to_front(segments.shape[0], direction[2])[::-1]"),
+    Mutant("threshold not inclusive", "voxrender/prep.py",
+           "mask = values >= threshold", "mask = values > threshold"),
+    Mutant("tie rule: first face wins", "voxrender/render/octree_ftb.py",
+           "np.minimum.at(image, pixels, depths)          # the nearest where two faces share an edge",
+           "image[pixels] = np.where(np.isfinite(image[pixels]), image[pixels], depths)"),
+    Mutant("gamma neighbour search: the nearest pre-image pixel only", "voxrender/render/preimage.py",
+           "for dv in (-1, 0, 1):\n        for du in (-1, 0, 1):", "for dv in (0,):\n        for du in (0,):"),
+    Mutant("octree blocking test ignores the lit leaves", "voxrender/render/octree_ftb.py",
+           "unblocked = lit[nodes] | (face_open != 0)", "unblocked = face_open != 0"),
+    Mutant("Q' complement on the wrong side", "voxrender/render/octree_sort.py",
+           "if vpn[axis] < 0:\n            string = ~string", "if vpn[axis] > 0:\n            string = ~string"),
+    Mutant("26->6 switch band: the object, not its dilation", "voxrender/render/raycast.py",
+           "band = proximity_band(mask) if connectivity == \"adaptive\" else None",
+           "band = mask if connectivity == \"adaptive\" else None"),
+    Mutant("line decision variable", "voxrender/lines.py",
+           "        if e_y < 0:\n            e_y += 2 * b", "        if e_y <= 0:\n            e_y += 2 * b"),
+    Mutant("cut plane keeps the near side", "voxrender/render/clip.py",
+           "keep &= view.to_image(x, y, z, mask.shape)[2] >= self.cut_depth - 1e-9",
+           "keep &= view.to_image(x, y, z, mask.shape)[2] <= self.cut_depth - 1e-9"),
+    Mutant("ray-box entry ignores the box's y extent", "voxrender/render/geometry.py",
+           "for k, half in enumerate((half_x, half_y, half_z)):", "for k, half in enumerate((half_x, 0.5, half_z)):"),
+]
+
+
+def scratch_copy(folder):
+    """The project's tracked files (as they are in the work tree) under ``folder/repo``, ``shared`` beside it."""
+    files = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True, check=True).stdout.split()
+    repo = folder / "repo"
+    for name in files:
+        target = repo / name
+        target.parent.mkdir(parents=True, exist_ok=True)
+        if (ROOT / name).is_file():
+            shutil.copy2(ROOT / name, target)
+    shared = ROOT.parent / "shared"
+    if shared.exists():
+        (folder / "shared").symlink_to(shared)
+    return repo
+
+
+def run_suite(repo):
+    """The names of the tests that fail in ``repo``, and pytest's closing line."""
+    environment = dict(os.environ, PYTHONPATH=str(repo), PYTHONDONTWRITEBYTECODE="1")
+    done = subprocess.run([sys.executable, "-m", "pytest", "-q", "--tb=no", "-rf", "-p", "no:cacheprovider"],
+                          cwd=repo, env=environment, capture_output=True, text=True, timeout=1200)
+    failed = re.findall(r"^FAILED (\S+)", done.stdout, re.MULTILINE)
+    closing = done.stdout.strip().splitlines()[-1] if done.stdout.strip() else done.stderr.strip()[-200:]
+    return failed, closing
+
+
+def main(names):
+    chosen = [m for m in MUTANTS if not names or any(n in m.name for n in names)]
+    survivors = []
+    with tempfile.TemporaryDirectory(prefix="voxrender-mutants-") as folder:
+        repo = scratch_copy(Path(folder))
+        failed, closing = run_suite(repo)
+        if failed:
+            print(f"the suite fails without any mutant ({closing}): {', '.join(failed[:5])}")
+            return 2
+        print(f"unmutated: {closing}")
+        for mutant in chosen:
+            path = repo / mutant.path
+            original = path.read_text()
+            if original.count(mutant.old) != 1:
+                print(f"{mutant.name}: the text to mutate occurs {original.count(mutant.old)} times in "
+                      f"{mutant.path}; update the mutant")
+                return 2
+            path.write_text(original.replace(mutant.old, mutant.new))
+            started = time.perf_counter()
+            try:
+                failed, closing = run_suite(repo)
+            finally:
+                path.write_text(original)
+            status = f"caught by {len(failed)} tests" if failed else "SURVIVED"
+            print(f"\n{mutant.name} ({mutant.path}): {status}, {time.perf_counter() - started:.0f} s")
+            for test in failed[:8]:
+                print(f"    {test}")
+            if len(failed) > 8:
+                print(f"    ... and {len(failed) - 8} more")
+            if not failed:
+                survivors.append(mutant.name)
+    print(f"\n{len(chosen) - len(survivors)} of {len(chosen)} mutants caught" +
+          (f"; survived: {', '.join(survivors)}" if survivors else ""))
+    return 1 if survivors else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
