@@ -6,8 +6,14 @@ from pydicom.uid import CTImageStorage, ExplicitVRLittleEndian, generate_uid
 
 
 def write_series(folder, volume, spacing=(0.5, 0.6, 2.0), series_uid=None, slope=1, intercept=-1024,
-                 names=None, shuffle_seed=0, positions=True, instance_numbers=True, description="test"):
-    """Write ``volume[z, y, x]`` (stored integers) as one CT slice per file, file names shuffled."""
+                 names=None, shuffle_seed=0, positions=True, instance_numbers=True, description="test",
+                 direction=None):
+    """Write ``volume[z, y, x]`` (stored integers) as one CT slice per file, file names shuffled.
+
+    ``direction`` (3 x 3, columns: the LPS directions of x, y and the slice order; axial by default) sets
+    ImageOrientationPatient and the slice positions.
+    """
+    direction = np.eye(3) if direction is None else np.asarray(direction, dtype=float)
     folder.mkdir(parents=True, exist_ok=True)
     series_uid = series_uid or generate_uid()
     order = np.random.default_rng(shuffle_seed).permutation(len(volume))
@@ -28,8 +34,8 @@ def write_series(folder, volume, spacing=(0.5, 0.6, 2.0), series_uid=None, slope
         if instance_numbers:
             ds.InstanceNumber = z + 1
         if positions:
-            ds.ImagePositionPatient = [0, 0, -100 + z * spacing[2]]
-            ds.ImageOrientationPatient = [1, 0, 0, 0, 1, 0]
+            ds.ImagePositionPatient = [float(v) for v in (np.array([0, 0, -100]) + z * spacing[2] * direction[:, 2])]
+            ds.ImageOrientationPatient = [float(v) for v in (*direction[:, 0], *direction[:, 1])]
         ds.PixelSpacing = [spacing[1], spacing[0]]
         ds.SliceThickness = spacing[2]
         ds.Rows, ds.Columns = volume.shape[1:]
@@ -44,3 +50,51 @@ def write_series(folder, volume, spacing=(0.5, 0.6, 2.0), series_uid=None, slope
         ds.save_as(folder / name, enforce_file_format=True)
         paths.append(folder / name)
     return paths
+
+
+def write_enhanced(path, volume, spacing=(0.5, 0.6, 2.0), slope=1, intercept=-1024, direction=None,
+                   shuffle_seed=0, positions=True, series_uid=None):
+    """Write ``volume[z, y, x]`` as one enhanced multi-frame CT file (functional groups), frames shuffled."""
+    from pydicom.dataset import Dataset
+    from pydicom.sequence import Sequence
+
+    direction = np.eye(3) if direction is None else np.asarray(direction, dtype=float)
+    order = np.random.default_rng(shuffle_seed).permutation(len(volume))
+    meta = FileMetaDataset()
+    meta.MediaStorageSOPClassUID = "1.2.840.10008.5.1.4.1.1.2.1"      # Enhanced CT Image Storage
+    meta.MediaStorageSOPInstanceUID = generate_uid()
+    meta.TransferSyntaxUID = ExplicitVRLittleEndian
+    ds = FileDataset(str(path), {}, file_meta=meta, preamble=b"\0" * 128)
+    ds.SOPClassUID = meta.MediaStorageSOPClassUID
+    ds.SOPInstanceUID = meta.MediaStorageSOPInstanceUID
+    ds.Modality = "CT"
+    ds.SeriesInstanceUID = series_uid or generate_uid()
+    ds.StudyInstanceUID = "1.2.3"
+    ds.NumberOfFrames = len(volume)
+    ds.Rows, ds.Columns = volume.shape[1:]
+    ds.SamplesPerPixel = 1
+    ds.PhotometricInterpretation = "MONOCHROME2"
+    ds.BitsAllocated = ds.BitsStored = 16
+    ds.HighBit = 15
+    ds.PixelRepresentation = 1
+    shared = Dataset()
+    measures, plane = Dataset(), Dataset()
+    measures.PixelSpacing = [spacing[1], spacing[0]]
+    measures.SliceThickness = spacing[2]
+    plane.ImageOrientationPatient = [float(v) for v in (*direction[:, 0], *direction[:, 1])]
+    shared.PixelMeasuresSequence = Sequence([measures])
+    shared.PlaneOrientationSequence = Sequence([plane])
+    ds.SharedFunctionalGroupsSequence = Sequence([shared])
+    frames = []
+    for z in order:
+        group, position, rescale = Dataset(), Dataset(), Dataset()
+        if positions:
+            position.ImagePositionPatient = [float(v) for v in np.array([0, 0, -100]) + z * spacing[2] * direction[:, 2]]
+            group.PlanePositionSequence = Sequence([position])
+        rescale.RescaleSlope, rescale.RescaleIntercept, rescale.RescaleType = slope, intercept, "HU"
+        group.PixelValueTransformationSequence = Sequence([rescale])
+        frames.append(group)
+    ds.PerFrameFunctionalGroupsSequence = Sequence(frames)
+    ds.PixelData = np.ascontiguousarray(volume[order], dtype=np.int16).tobytes()
+    ds.save_as(path, enforce_file_format=True)
+    return path

@@ -1,6 +1,8 @@
 import json
+import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import imageio.v3 as iio
 import numpy as np
@@ -302,3 +304,53 @@ def test_issue_commands_on_real_data(tmp_path):
         assert abs(columns.mean() - 63.5) < 12 and abs(rows.mean() - 63.5) < 20
         assert len(np.unique(picture[covered][:, 0])) > 50
     assert (face.any(axis=2)).sum() > (skull.any(axis=2)).sum()          # skin hides the skull's openings
+
+
+# ------------------------------------------------------------------ research formats and a corpus no one here wrote
+
+def test_pydicom_corpus_renders_or_ends_in_one_clean_line(tmp_path):
+    """pydicom's own test files, each in a folder of its own, as a new user would try them: every one renders, or
+    ends with exit 2 and one error line (warnings may come before it); none is an internal error."""
+    import pydicom.data
+
+    files = sorted((Path(pydicom.data.__file__).parent / "test_files").glob("*.dcm"))   # those pydicom installs
+    assert len(files) > 70
+    outcomes = {}
+    for path in files:
+        folder = tmp_path / Path(path).stem
+        folder.mkdir()
+        shutil.copy(path, folder)
+        result = run("render", folder, "--size", 24, "-o", tmp_path / f"{folder.name}.png")
+        errors = [line for line in result.stderr.splitlines() if not line.startswith("warning: ")]
+        assert result.exit_code in (0, 2), (path, result.stderr)
+        if result.exit_code == 2:
+            assert len(errors) == 1 and errors[0].startswith("error: "), (path, result.stderr)
+            assert not (tmp_path / f"{folder.name}.png").exists()
+        outcomes[Path(path).stem] = result.exit_code
+    # what used to fail and now reads: RGB secondary captures, multi-frame dose grids, files without meta headers
+    assert outcomes["SC_rgb_rle"] == outcomes["rtdose"] == outcomes["ExplVR_BigEnd"] == 0
+    assert outcomes["badVR"] == 2 and outcomes["rtplan"] == 2
+    assert sum(code == 0 for code in outcomes.values()) >= 50
+
+
+def test_research_formats_through_the_commands(tmp_path):
+    import nibabel
+
+    data = np.zeros((12, 10, 8), np.int16)                       # [i, j, k]
+    data[3:9, 2:8, 2:6] = 1000
+    nibabel.save(nibabel.Nifti1Image(np.stack([data, data], axis=-1), np.eye(4)), str(tmp_path / "t.nii.gz"))
+    assert_bad_input(run("render", tmp_path / "t.nii.gz", "-o", tmp_path / "o.png"), "--frame", "2 volumes")
+    assert_bad_input(run("render", tmp_path / "t.nii.gz", "--frame", 5, "-o", tmp_path / "o.png"), "--frame")
+    assert_bad_input(run("render", tmp_path / "t.nii.gz", "--frame", 1, "--orientation", "XYZ", "-o",
+                         tmp_path / "o.png"), "--orientation")
+    assert not (tmp_path / "o.png").exists()
+    result = run("render", tmp_path / "t.nii.gz", "--frame", 1, "--threshold", 500, "--view", "anterior", "-o",
+                 tmp_path / "o.png")
+    assert result.exit_code == 0 and iio.imread(tmp_path / "o.png").any()
+    info = run("info", tmp_path / "t.nii.gz", "--frame", 0, "--threshold", 500)
+    assert "orientation: RAS" in info.output and "orientation from: NIfTI sform" in info.output
+    assert "reoriented: RAS -> LPS: flipped x, y" in info.output and "affine:" in info.output
+    assert run("encode", tmp_path / "t.nii.gz", "--frame", 0, "--threshold", 500, "-o", tmp_path / "t.vxs").exit_code == 0
+    result = run("batch", tmp_path / "t.nii.gz", "--frame", 0, "--threshold", 500, "--size", 24, "-o", tmp_path / "b",
+                 "--jobs", 1)
+    assert result.exit_code == 0 and (tmp_path / "b" / "t.nii" / "anterior.png").exists()

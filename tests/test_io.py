@@ -309,3 +309,113 @@ def test_a_toy_reader_added_by_the_recipe(tmp_path, monkeypatch):
     assert encoded.segments.voxel_count == 6
     with pytest.raises(InputError, match="toy input takes no series"):
         io.read_volume(tmp_path / "box.toy", series="1.2")
+
+
+# ------------------------------------------------------------------ NIfTI, NRRD, enhanced DICOM, TIFF spacing
+
+def test_enhanced_ct_gives_the_same_volume_as_its_classic_series(tmp_path):
+    from dicom_files import write_enhanced
+
+    stored = np.random.default_rng(5).integers(0, 2000, (6, 7, 8)).astype(np.int16)
+    write_series(tmp_path / "classic", stored, intercept=-1024)
+    write_enhanced(tmp_path / "enhanced" / "ct.dcm", stored, intercept=-1024) if (tmp_path / "enhanced").mkdir() \
+        is None else None
+    classic, enhanced = io.read_volume(tmp_path / "classic"), io.read_volume(tmp_path / "enhanced")
+    assert np.array_equal(classic.values, enhanced.values) and classic.spacing == enhanced.spacing
+    assert enhanced.meta["units"] == "HU" and enhanced.meta["sorted_by"] == "per-frame ImagePositionPatient"
+
+
+def test_a_folder_with_a_classic_and_an_enhanced_series_lists_both(tmp_path):
+    from dicom_files import write_enhanced
+
+    stored = np.zeros((3, 4, 4), np.int16)
+    write_series(tmp_path, stored, series_uid="1.2.3.7")
+    write_enhanced(tmp_path / "enhanced.dcm", stored, series_uid="1.2.3.8")
+    with pytest.raises(InputError, match="2 DICOM series") as info:
+        io.read_volume(tmp_path)
+    assert "1.2.3.7" in str(info.value) and "1.2.3.8" in str(info.value)
+    assert io.read_volume(tmp_path, series="1.2.3.8").shape == (3, 4, 4)
+
+
+def test_an_enhanced_dicom_without_positions_is_refused(tmp_path):
+    from dicom_files import write_enhanced
+
+    write_enhanced(tmp_path / "ct.dcm", np.zeros((3, 4, 4), np.int16), positions=False)
+    with pytest.raises(InputError, match="frames lack ImagePositionPatient"):
+        io.read_volume(tmp_path)
+
+
+def test_nifti_scaling_and_4d_frames(tmp_path):
+    import nibabel
+
+    data = np.arange(4 * 5 * 6 * 2, dtype=np.int16).reshape(6, 5, 4, 2)      # [i, j, k, t]
+    image = nibabel.Nifti1Image(data, np.diag([2.0, 3.0, 4.0, 1.0]))
+    image.header.set_slope_inter(0.5, 10)
+    nibabel.save(image, str(tmp_path / "four.nii.gz"))
+    with pytest.raises(InputError, match="holds 2 volumes") as info:
+        io.read_volume(tmp_path / "four.nii.gz")
+    assert info.value.parameter == "frame"
+    with pytest.raises(InputError, match="is not a volume") as info:
+        io.read_volume(tmp_path / "four.nii.gz", frame=2)
+    volume = io.read_volume(tmp_path / "four.nii.gz", frame=1, reorient=False)
+    assert volume.shape == (4, 5, 6) and volume.spacing == (2.0, 3.0, 4.0)
+    assert np.allclose(volume.values, data[..., 1].transpose(2, 1, 0) * 0.5 + 10)
+    assert io.read_volume(tmp_path / "four.nii.gz", frame=1).meta["reoriented"] == "RAS -> LPS: flipped x, y"
+
+
+def test_nifti_with_a_bad_pixdim_or_truncated(tmp_path):
+    import nibabel
+
+    nibabel.save(nibabel.Nifti1Image(np.zeros((4, 4, 4), np.int16), np.eye(4)), str(tmp_path / "flat.nii"))
+    with open(tmp_path / "flat.nii", "r+b") as f:           # nibabel mends a zero pixdim when it saves an image,
+        header = nibabel.Nifti1Header.from_fileobj(f)      # so the header is written back on its own
+        header["pixdim"][2] = 0
+        f.seek(0)
+        header.write_to(f)
+    with pytest.raises(InputError, match="pixdim"):
+        io.read_volume(tmp_path / "flat.nii")
+    nibabel.save(nibabel.Nifti1Image(np.random.default_rng(0).random((20, 20, 20)), np.eye(4)),
+                 str(tmp_path / "whole.nii.gz"))
+    (tmp_path / "cut.nii.gz").write_bytes((tmp_path / "whole.nii.gz").read_bytes()[:4000])
+    with pytest.raises(InputError, match="cut.nii.gz"):
+        io.read_volume(tmp_path / "cut.nii.gz")
+
+
+def test_nifti_without_sform_or_qform_warns(tmp_path):
+    import nibabel
+
+    image = nibabel.Nifti1Image(np.zeros((3, 4, 5), np.int16), None)
+    image.header.set_sform(None, code=0)
+    image.header.set_qform(None, code=0)
+    nibabel.save(image, str(tmp_path / "bare.nii"))
+    with pytest.warns(UserWarning, match="neither sform nor qform"):
+        volume = io.read_volume(tmp_path / "bare.nii")
+    assert volume.shape == (5, 4, 3) and volume.meta["orientation_from"].startswith("unknown")
+
+
+def test_nrrd_encodings_and_bad_files(tmp_path):
+    import nrrd
+
+    data = np.random.default_rng(1).integers(0, 100, (3, 4, 5)).astype(np.uint16)
+    for encoding in ("raw", "gzip", "bzip2"):
+        nrrd.write(str(tmp_path / f"{encoding}.nrrd"), data, {"encoding": encoding, "endian": "big"}, index_order="C")
+        assert np.array_equal(io.read_volume(tmp_path / f"{encoding}.nrrd").values, data)
+    nrrd.write(str(tmp_path / "detached.nhdr"), data, {"encoding": "gzip"}, index_order="C", detached_header=True)
+    assert np.array_equal(io.read_volume(tmp_path / "detached.nhdr").values, data)
+    next(tmp_path.glob("detached.raw*")).unlink()
+    with pytest.raises(InputError, match="missing|cannot read"):
+        io.read_volume(tmp_path / "detached.nhdr")
+    text = (tmp_path / "raw.nrrd").read_bytes().replace(b"encoding: raw", b"encoding: magic")
+    (tmp_path / "magic.nrrd").write_bytes(text)
+    with pytest.raises(InputError, match="cannot read"):
+        io.read_volume(tmp_path / "magic.nrrd")
+
+
+def test_tiff_spacing_from_imagej_metadata(tmp_path):
+    import tifffile
+
+    stack = np.zeros((4, 5, 6), np.uint16)
+    tifffile.imwrite(tmp_path / "stack.tif", stack, imagej=True, resolution=(1 / 0.25, 1 / 0.5),
+                     metadata={"spacing": 2.0, "unit": "mm"})
+    volume = io.read_volume(tmp_path / "stack.tif")
+    assert volume.spacing == (0.25, 0.5, 2.0) and volume.meta["spacing_from"] == "ImageJ metadata"

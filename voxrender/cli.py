@@ -16,7 +16,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from . import __version__, batch, io, lines, octree, output, parse, prep, samples, segments
+from . import __version__, batch, io, lines, octree, orient, output, parse, prep, samples, segments
 from .errors import InputError
 from .picture import SHADINGS, Outputs, RenderOptions, about, picture, write_outputs
 from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
@@ -72,7 +72,10 @@ def _view_from(options):
 def _read_options(options):
     spacing = io.check_spacing(parse.vector(options["spacing"], "spacing")) if options["spacing"] else None
     raw = parse.raw_layout(options["raw"]) if options["raw"] else None
-    return ReadOptions(options["format"], raw, spacing, options["series"])
+    if options["orientation"] is not None:
+        orient.direction_of(options["orientation"])          # a bad code is an error before anything is read
+    return ReadOptions(options["format"], raw, spacing, options["series"], options["frame"], options["orientation"],
+                       options["reorient"])
 
 
 def _prep_options(options):
@@ -95,7 +98,7 @@ def _check_vxs_options(path, options):
     """A .vxs file is already thresholded: refuse options that would silently do nothing."""
     if not is_segments_file(path):
         return
-    given = [flag(name) for name in ("threshold", "crop", "voxel", "raw", "spacing", "series")
+    given = [flag(name) for name in ("threshold", "crop", "voxel", "raw", "spacing", "series", "frame", "orientation")
              if options.get(name) is not None]
     if given:
         raise InputError(f"{path} is already encoded, so {', '.join(given)} cannot apply; "
@@ -122,6 +125,13 @@ def _read_options_decorator(command):
         click.option("--raw", metavar="WxH:DTYPE:ENDIAN", help="Headerless slices, e.g. 64x64:uint16:little."),
         click.option("--spacing", metavar="X,Y,Z", help="Voxel spacing in mm; overrides the files."),
         click.option("--series", metavar="UID", help="DICOM SeriesInstanceUID, when a folder holds several."),
+        click.option("--frame", type=int, metavar="N", help="The volume to read from a 4-D NIfTI or NRRD (from 0)."),
+        click.option("--orientation", metavar="CODE",
+                     help="Orientation of an input whose header has none, e.g. RAS or LPI: the sides voxel x, y and "
+                          "z grow toward."),
+        click.option("--reorient/--no-reorient", default=True, show_default=True,
+                     help="Bring the volume to the patient frame the view presets assume (flips and permutations "
+                          "only), or keep the stored order."),
     ])
 
 
@@ -299,7 +309,8 @@ def _describe(path, volume, prepare):
                "units": volume.meta.get("units", "stored values"), "value_range": [low, high],
                "percentiles_1_5_25_50_75_95_99": [round(float(p), 2) for p in percentiles],
                "suggested_threshold_otsu": round(suggested, 2)}
-    for key in ("modality", "series", "description", "sorted_by"):
+    for key in ("modality", "series", "description", "sorted_by", "orientation", "orientation_from", "affine",
+                "reoriented"):
         if volume.meta.get(key):
             summary[key] = volume.meta[key]
     threshold = suggested if callable(prepare.threshold) else prepare.threshold

@@ -28,9 +28,13 @@ class ReadOptions:
     raw: io.RawLayout | None = None
     spacing: tuple | None = None
     series: str | None = None
+    frame: int | None = None
+    orientation: str | None = None
+    reorient: bool = True
 
     def read(self, path, progress=None):
         return io.read_volume(path, format=self.format, raw=self.raw, spacing=self.spacing, series=self.series,
+                              frame=self.frame, orientation=self.orientation, reorient=self.reorient,
                               progress=progress)
 
 
@@ -108,6 +112,7 @@ def load_segments(path, read=None, prepare=None, progress=None):
                                resample=prepare.resample, min_object=prepare.min_object, progress=progress)
     meta = {"source": str(path), "threshold": info["threshold"], "voxel_mm": info["voxel"],
             "input_shape": list(volume.shape), "input_spacing": list(volume.spacing)}
-    meta.update({k: v for k, v in volume.meta.items() if k in ("format", "modality", "units", "series")})
+    meta.update({k: v for k, v in volume.meta.items()
+                 if k in ("format", "modality", "units", "series", "orientation", "orientation_from", "reoriented")})
     encoded = segments.encode(mask, info["spacing"], meta)
     return Encoded(encoded, {"load": loaded - started, "prepare": time.perf_counter() - loaded})
