@@ -77,6 +77,20 @@ def median_seconds(work, repeat):
     return statistics.median(times), result
 
 
+def bench_read(path, volume, repeat):
+    """Seconds to read the same volume as the DICOM folder, as .nii.gz and as a gzip-encoded .nrrd."""
+    from voxrender import output
+
+    with tempfile.TemporaryDirectory() as folder:
+        nifti = output.write_nifti(Path(folder) / "head.nii.gz", volume.values, volume.spacing)
+        nrrd_file = output.write_nrrd(Path(folder) / "head.nrrd", volume.values, volume.spacing)
+        seconds = {name: median_seconds(lambda: io.read_volume(source), repeat)[0]
+                   for name, source in (("DICOM folder", path), (".nii.gz", nifti), (".nrrd (gzip)", nrrd_file))}
+        sizes = {".nii.gz": nifti.stat().st_size, ".nrrd (gzip)": nrrd_file.stat().st_size,
+                 "DICOM folder": sum(f.stat().st_size for f in Path(path).iterdir())}
+    return {name: {"seconds": seconds[name], "megabytes": sizes[name] / 1e6} for name in seconds}
+
+
 def bench_encode(volume, repeat):
     seconds, encoded = median_seconds(lambda: segments.encode(prep.binarize(volume, THRESHOLD)[0]), repeat)
     return {"threshold_and_encode_s": seconds, "voxels": encoded.voxel_count, "segments": encoded.segment_count,
@@ -390,6 +404,10 @@ def markdown(results):
              f"read DICOM {results['read_s']:.2f} s; threshold + encode "
              f"{results['encode']['threshold_and_encode_s']:.3f} s (medians of {results['repeat']})", "",
              "Render, 512 x 512 at scale 1 (median seconds; ratios to ftb in the same run):", ""]
+    if results.get("read"):
+        lines[2:2] = ["Reading vhf_head (median seconds):", "", "| stored as | MB | read s |", "|---|---|---|",
+                      *(f"| {name} | {row['megabytes']:.1f} | {row['seconds']:.2f} |"
+                        for name, row in results["read"].items()), ""]
     lines += _views_table(results["views"], methods + peers)
     if results.get("skin"):
         skin = results["skin"]
@@ -465,6 +483,7 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
     return {"when": time.strftime("%Y-%m-%d %H:%M"),
             "machine": f"{platform.machine()}, {platform.python_version()}, numpy {np.__version__}",
             "repeat": repeat, "read_s": read_s, "encode": encode, "vtk_version": vtk_version,
+            "read": bench_read(path, volume, max(1, repeat // 2)),
             "views": bench_views(encoded, repeat, peer=peer),
             "skin": {"voxels": skin.segments.voxel_count, "segments": skin.segments.segment_count,
                      "views": bench_views(skin, repeat, views=PAPER_VIEWS)},

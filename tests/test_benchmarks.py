@@ -32,10 +32,13 @@ def test_markdown_report():
                "encode": {"grid_xyz": [4, 4, 4], "voxels": 8, "segments": 4, "threshold_and_encode_s": 0.1},
                "views": [{"alpha": 1.0, "beta": 2.0, "seconds": {m: 1.0 for m in bench.timed_methods()}}],
                "pipeline": {"command": "c", "seconds": 1.0, "method": "ftb"},
+               "read": {"DICOM folder": {"seconds": 0.5, "megabytes": 123.0}, ".nii.gz": {"seconds": 0.25,
+                                                                                        "megabytes": 17.0}},
                "scaling": bench.bench_scaling(repeat=1, sizes=(8, 10)),
                "raycast": bench.bench_raycast(1, {"shell": (segments.encode(bench.thin_shell(24, 9.0)),
                                                              View(30, 10, 0, (32, 32), 1.2))})}
     text = bench.markdown(results)
+    assert "| .nii.gz | 17.0 | 0.25 |" in text
     assert "| 1 | 2 |" in text and "fitted exponent" in text and "peers" in text and "| shell | adaptive |" in text
     rows = results["raycast"]["shell"]["rows"]
     assert rows["adaptive"]["leaks"] == 0 and rows["26"]["leaks"] > 0

@@ -136,8 +136,9 @@ def test_demo_writes_the_samples(tmp_path):
 
 def test_samples_render_at_their_threshold(tmp_path):
     assert run("samples", tmp_path, "--name", "staircase").exit_code == 0
-    result = run("info", tmp_path / "staircase", "--threshold", SAMPLE_THRESHOLD, "--json")
-    assert json.loads(result.output)["object_voxels"] == 11
+    for written in ("staircase", "staircase.nii.gz", "staircase.nrrd"):      # slices, NIfTI and NRRD alike
+        result = run("info", tmp_path / written, "--threshold", SAMPLE_THRESHOLD, "--json")
+        assert json.loads(result.output)["object_voxels"] == 11, written
 
 
 def test_lines_table_reproduces_table_1():

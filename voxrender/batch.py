@@ -241,6 +241,8 @@ def cache_key(path, read, prepare):
     files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
     if path.suffix.lower() == ".mhd" and path.is_file():
         files += [p for p in path.parent.iterdir() if p.suffix.lower() in (".raw", ".zraw")]
+    if path.suffix.lower() == ".nhdr" and path.is_file():    # a detached NRRD header names its data file
+        files += [p for p in path.parent.iterdir() if p.name.startswith(path.stem + ".") and p != path]
     for file in files:
         digest.update(str(file.relative_to(path) if path.is_dir() else file.name).encode())
         with open(file, "rb") as f:

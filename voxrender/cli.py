@@ -429,13 +429,16 @@ def lines_command(table, trials, seed, side):
 @click.option("--name", "names", multiple=True, type=click.Choice(list(samples.SAMPLES)),
               help="Which samples (default: all).")
 def samples_command(folder, names):
-    """Write small synthetic CT-like slice folders (threshold 500) into FOLDER."""
+    """Write small synthetic CT-like stacks (threshold 500) into FOLDER: PNG slice folders, NIfTI and NRRD."""
     if folder.exists() and not folder.is_dir():
         raise InputError(f"{folder} is a file; give a folder for the samples")
     folder.mkdir(parents=True, exist_ok=True)
     for name in names or samples.SAMPLES:
-        path = output.write_slices(samples.SAMPLES[name](), folder / name)
-        click.echo(f"{path}: {len(list(path.glob('*.png')))} slices")
+        values = samples.SAMPLES[name]()
+        path = output.write_slices(values, folder / name)
+        output.write_nifti(folder / f"{name}.nii.gz", values)
+        output.write_nrrd(folder / f"{name}.nrrd", values)
+        click.echo(f"{path}: {len(values)} slices, and {name}.nii.gz, {name}.nrrd beside it")
 
 
 # The demo: the noisy shell seen from the front, a little from the left and above, so both eye holes show.

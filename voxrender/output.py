@@ -16,7 +16,8 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["check_writable", "atomic_output", "write_png", "write_npy", "write_json", "write_slices"]
+__all__ = ["check_writable", "atomic_output", "write_png", "write_npy", "write_json", "write_slices", "write_nifti",
+           "write_nrrd"]
 
 
 def check_writable(path):
@@ -96,3 +97,35 @@ def write_slices(values, folder):
     for z, plane in enumerate(values):
         write_png(folder / f"slice_{z:03d}.png", plane)
     return folder
+
+
+def write_nifti(path, values, spacing=(1.0, 1.0, 1.0)):
+    """Write ``values[z, y, x]``, in the canonical frame (x toward L, y toward P, z toward S), as NIfTI (gzipped
+    when ``path`` ends in ``.gz``) with its sform, atomically.
+
+    >>> import tempfile
+    >>> path = write_nifti(Path(tempfile.mkdtemp()) / "v.nii.gz", np.zeros((2, 3, 4), np.int16), (1, 1, 2))
+    >>> from voxrender.io import read_volume
+    >>> read_volume(path).shape, read_volume(path).spacing
+    ((2, 3, 4), (1.0, 1.0, 2.0))
+    """
+    import gzip
+
+    import nibabel
+
+    affine = np.diag([-float(spacing[0]), -float(spacing[1]), float(spacing[2]), 1.0])   # LPS voxels, RAS world
+    data = nibabel.Nifti1Image(np.transpose(values, (2, 1, 0)), affine).to_bytes()
+    with atomic_output(path) as tmp:
+        tmp.write_bytes(gzip.compress(data, 6) if str(path).endswith(".gz") else data)
+    return Path(path)
+
+
+def write_nrrd(path, values, spacing=(1.0, 1.0, 1.0)):
+    """Write ``values[z, y, x]``, in the canonical frame, as a gzip-encoded NRRD in LPS space, atomically."""
+    import nrrd
+
+    header = {"space": "left-posterior-superior", "space directions": np.diag([float(v) for v in spacing]),
+              "space origin": [0.0, 0.0, 0.0], "encoding": "gzip"}
+    with atomic_output(path) as tmp:
+        nrrd.write(str(tmp), np.ascontiguousarray(values), header, index_order="C")
+    return Path(path)
