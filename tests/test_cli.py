@@ -355,3 +355,21 @@ def test_research_formats_through_the_commands(tmp_path):
     result = run("batch", tmp_path / "t.nii.gz", "--frame", 0, "--threshold", 500, "--size", 24, "-o", tmp_path / "b",
                  "--jobs", 1)
     assert result.exit_code == 0 and (tmp_path / "b" / "t.nii" / "anterior.png").exists()
+
+
+def test_bad_research_files_end_in_one_line(tmp_path):
+    import nibabel
+    import nrrd
+
+    nibabel.save(nibabel.Nifti1Image(np.random.default_rng(0).random((20, 20, 20)), np.eye(4)),
+                 str(tmp_path / "whole.nii.gz"))
+    (tmp_path / "cut.nii.gz").write_bytes((tmp_path / "whole.nii.gz").read_bytes()[:3000])
+    nrrd.write(str(tmp_path / "v.nrrd"), np.zeros((3, 4, 5), np.uint8), index_order="C")
+    (tmp_path / "magic.nrrd").write_bytes((tmp_path / "v.nrrd").read_bytes().replace(b"encoding: gzip",
+                                                                                       b"encoding: magic"))
+    nrrd.write(str(tmp_path / "gone.nhdr"), np.zeros((3, 4, 5), np.uint8), index_order="C", detached_header=True)
+    for data in tmp_path.glob("gone.raw*"):
+        data.unlink()
+    for name, words in (("cut.nii.gz", ["cut.nii.gz"]), ("magic.nrrd", ["cannot read"]), ("gone.nhdr", ["gone"])):
+        assert_bad_input(run("render", tmp_path / name, "-o", tmp_path / "o.png"), *words)
+        assert not (tmp_path / "o.png").exists()

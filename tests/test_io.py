@@ -419,3 +419,19 @@ def test_tiff_spacing_from_imagej_metadata(tmp_path):
                      metadata={"spacing": 2.0, "unit": "mm"})
     volume = io.read_volume(tmp_path / "stack.tif")
     assert volume.spacing == (0.25, 0.5, 2.0) and volume.meta["spacing_from"] == "ImageJ metadata"
+
+
+def test_nifti_2_and_ome_tiff(tmp_path):
+    import nibabel
+    import tifffile
+
+    data = np.random.default_rng(2).integers(0, 9, (5, 4, 3)).astype(np.int16)       # [i, j, k]
+    nibabel.save(nibabel.Nifti2Image(data, np.diag([-1.0, -1.0, 2.0, 1.0])), str(tmp_path / "two.nii"))
+    volume = io.read_volume(tmp_path / "two.nii")                  # stored LPS (negative x, y in RAS): as stored
+    assert np.array_equal(volume.values, data.transpose(2, 1, 0)) and volume.spacing == (1.0, 1.0, 2.0)
+    stack = np.zeros((3, 4, 5), np.uint16)
+    tifffile.imwrite(tmp_path / "ome.ome.tif", stack, ome=True,
+                     metadata={"axes": "ZYX", "PhysicalSizeX": 0.5, "PhysicalSizeY": 0.25, "PhysicalSizeZ": 2.0,
+                               "PhysicalSizeXUnit": "mm", "PhysicalSizeYUnit": "mm", "PhysicalSizeZUnit": "mm"})
+    volume = io.read_volume(tmp_path / "ome.ome.tif")
+    assert volume.spacing == (0.5, 0.25, 2.0) and volume.meta["spacing_from"] == "OME metadata"
