@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from voxrender import segments
 from voxrender.cli import main
 from voxrender.errors import InputError
 from voxrender.picture import Outputs, RenderOptions, picture, write_outputs
+from voxrender.pipeline import PrepOptions, load_segments
 from voxrender.render import METHODS, Clip
 from voxrender.view import View
 
@@ -67,7 +67,7 @@ def test_render_and_batch_make_identical_pictures(tmp_path, ball_file, options):
 def test_picture_is_what_the_commands_write(tmp_path, ball_file):
     run("render", ball_file, "--threshold", 500, "--alpha", 30, "--beta", 20, "--size", 48, "--light", "1,0,-1",
         "-o", tmp_path / "cli.png")
-    encoded = segments.encode(np.load(ball_file) >= 500)
+    encoded = load_segments(ball_file, prepare=PrepOptions(threshold=500)).segments     # with grey-level normals
     options = RenderOptions(size=(48, 48), light=(1.0, 0.0, -1.0))
     result = picture(encoded, options.view(30, 20), options)
     assert np.array_equal(result.rgb, iio.imread(tmp_path / "cli.png"))

@@ -116,10 +116,13 @@ class Patterns:
     depth: str | None = None
     depth_png: str | None = None
     stats_json: str | None = None
+    normals: str | None = None
+    normals_png: str | None = None
 
     def outputs(self, out_dir, **fields):
         return Outputs(*(None if pattern is None else Path(out_dir) / pattern.format(**fields)
-                         for pattern in (self.picture, self.depth, self.depth_png, self.stats_json)))
+                         for pattern in (self.picture, self.depth, self.depth_png, self.stats_json, self.normals,
+                                         self.normals_png)))
 
 
 @dataclass
@@ -297,8 +300,9 @@ def render_task(item, view, index, segments_path, out_dir, encode_seconds):
         status = Path(segments_path).stat()
         encoded = _encoded(str(segments_path), (status.st_size, status.st_mtime_ns))
         tree = encoded.octree() if method_record(item.method).octree else None
+        normals = encoded.normals() if item.options.shading == "gradient" else None
         result = picture(encoded.segments, item.options.view(view.alpha, view.beta, view.gamma), item.options,
-                         tree=tree)
+                         tree=tree, normals=normals)
         for path in outputs.paths():
             path.parent.mkdir(parents=True, exist_ok=True)
         seconds = write_outputs(result, outputs, about(encoded.segments))   # this picture's stages
@@ -480,7 +484,8 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
 def _check_patterns(items, out_dir):
     """Every output of every picture gets a distinct path with the right ending, before anything is made."""
     seen = {}
-    endings = {"picture": ".png", "depth": ".npy", "depth_png": ".png", "stats_json": ".json"}
+    endings = {"picture": ".png", "depth": ".npy", "depth_png": ".png", "stats_json": ".json", "normals": ".npy",
+               "normals_png": ".png"}
     for item in items:
         for index, view in enumerate(item.views):
             try:

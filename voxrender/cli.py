@@ -18,10 +18,11 @@ import numpy as np
 
 from . import __version__, batch, io, lines, octree, orient, output, parse, prep, samples, segments
 from .errors import InputError
-from .picture import SHADINGS, Outputs, RenderOptions, about, picture, write_outputs
+from .picture import Outputs, RenderOptions, about, picture, write_outputs
 from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
 from .render import DEFAULT_METHOD, METHODS, Clip
 from .render.raycast import CONNECTIVITIES
+from .shade import HEADLIGHT, SHADINGS
 from .view import PRESETS, angles_from_vpn
 
 
@@ -44,7 +45,8 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 # ---------------------------------------------------------------- flags and their parsers
 
 # Library parameters whose flag is not "--" + the name with dashes.
-FLAGS = {"picture": "--pattern", "depth": "--depth-out", "inputs": "INPUT", "views": "the manifest's views"}
+FLAGS = {"picture": "--pattern", "depth": "--depth-out", "normals": "--normals-out", "inputs": "INPUT",
+         "views": "the manifest's views"}
 
 
 def flag(parameter):
@@ -166,8 +168,9 @@ def _render_options_decorator(command):
                      help="Cutaway: ignore voxels nearer than Z' = D (voxels; 0 is the volume centre)."),
         click.option("--supersample", default=2, show_default=True, type=click.IntRange(1, 8),
                      help="Pre-image supersampling for methods that apply gamma by rotating the picture."),
-        click.option("--shading", default="gradient", show_default=True, type=click.Choice(list(SHADINGS))),
-        click.option("--light", default="0,0,-1", show_default=True, metavar="X,Y,Z",
+        click.option("--shading", default="gradient", show_default=True, type=click.Choice(list(SHADINGS)),
+                     help="gradient: lit grey-level gradient normals; depth-gradient: the paper's shading; depth."),
+        click.option("--light", default=",".join(f"{v:g}" for v in HEADLIGHT), show_default=True, metavar="X,Y,Z",
                      help="Direction toward the light in image space (X right, Y down, Z away)."),
         click.option("--background", default="black", show_default=True, metavar="GREY|R,G,B"),
         click.option("--depth-out", type=click.Path(path_type=Path), metavar="FILE.npy",
@@ -176,6 +179,10 @@ def _render_options_decorator(command):
                      help="Save depth as a 16-bit PNG (near bright, background 0); in a batch, a pattern."),
         click.option("--stats-json", type=click.Path(path_type=Path), metavar="FILE",
                      help="Save timings and the renderer's statistics as JSON; in a batch, a pattern."),
+        click.option("--normals-out", type=click.Path(path_type=Path), metavar="FILE.npy",
+                     help="Save the image-space unit normals (H x W x 3, NaN background); in a batch, a pattern."),
+        click.option("--normals-png", type=click.Path(path_type=Path), metavar="FILE.png",
+                     help="Save an RGB normal map; in a batch, a pattern."),
     ])
 
 
@@ -229,16 +236,19 @@ def main():
 @click.option("--gamma", type=float, help="Rotation about Z1 (the view axis) in degrees.")
 @click.option("--vpn", metavar="I,J,K", help="View plane normal (object x,y,z toward the viewer).")
 @_render_options_decorator
-def render_command(input_path, output_path, depth_out, depth_png, stats_json, **options):
+def render_command(input_path, output_path, depth_out, depth_png, stats_json, normals_out, normals_png, **options):
     """Render INPUT (a slice folder, volume file or .vxs) to a shaded PNG."""
     _check_vxs_options(input_path, options)
     angles = _view_from(options)
     render_options = _render_options(options)
-    outputs = Outputs(output_path, depth_out, depth_png, stats_json)
+    outputs = Outputs(output_path, depth_out, depth_png, stats_json, normals_out, normals_png)
+    if (normals_out or normals_png) and render_options.shading != "gradient":
+        raise InputError("normals are kept with gradient shading only", parameter="shading")
     for path in outputs.paths():
         output.check_writable(path)
     loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
-    result = picture(loaded.segments, render_options.view(*angles), render_options, progress)
+    result = picture(loaded.segments, render_options.view(*angles), render_options, progress,
+                     normals=loaded.normals() if render_options.shading == "gradient" else None)
     result.seconds = {**loaded.seconds, **result.seconds}
     write_outputs(result, outputs, about(loaded.segments))
     if not result.image.coverage.any():
@@ -363,7 +373,7 @@ class _BatchBar:
 @click.option("--scheduler", metavar="ADDRESS|local", help="Run on a Dask cluster ('local' starts one here).")
 @click.option("--cache", type=click.Path(path_type=Path), help="Cache of encoded objects (default OUT/.voxrender-cache).")
 def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pattern, depth_out, depth_png,
-                  stats_json, gif, mp4, fps, jobs, scheduler, cache, **options):
+                  stats_json, normals_out, normals_png, gif, mp4, fps, jobs, scheduler, cache, **options):
     """Render many inputs from many views: pictures, an optional animation, and summary.csv.
 
     Each input is encoded once (and cached); a failing input is reported and the others go on;
@@ -372,7 +382,8 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
     """
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"--out {out_dir} is a file; give a folder")
-    patterns = batch.Patterns(pattern, *(None if p is None else str(p) for p in (depth_out, depth_png, stats_json)))
+    patterns = batch.Patterns(pattern, *(None if p is None else str(p)
+                                         for p in (depth_out, depth_png, stats_json, normals_out, normals_png)))
     items = batch.items_from(batch.expand_inputs(inputs), batch.read_manifest(manifest) if manifest else [],
                              _read_options(options), _prep_options(options), _render_options(options),
                              batch.parse_views(views, [parse.vector(a, "angles") for a in angles], turntable, axis),

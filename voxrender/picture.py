@@ -17,12 +17,12 @@ import numpy as np
 
 from . import output, shade
 from .errors import InputError
+from .shade import HEADLIGHT, SHADINGS
 from .render import DEFAULT_METHOD, Clip, DepthImage, method_record, render
 from .view import View
 
 __all__ = ["RenderOptions", "Outputs", "Picture", "picture", "write_outputs", "about"]
 
-SHADINGS = ("gradient", "depth")
 
 
 @dataclass(frozen=True)
@@ -45,9 +45,10 @@ class RenderOptions:
         Pixels per voxel (default: fitted).
     supersample : int
         Pre-image supersampling, for methods that turn a pre-image by gamma.
-    shading : {"gradient", "depth"}
+    shading : {"gradient", "depth-gradient", "depth"}
+        Lighting of grey-level gradient normals (the default), the paper's depth-gradient shading, or depth.
     light : 3 floats
-        Direction toward the light in image space.
+        Direction toward the light in image space (default: a headlight a little above and left).
     colour : 3 floats in [0, 1]
         Colour of a fully lit surface.
     background : 3 ints in [0, 255]
@@ -61,7 +62,7 @@ class RenderOptions:
     scale: float | None = None
     supersample: int = 2
     shading: str = "gradient"
-    light: tuple = (0.0, 0.0, -1.0)
+    light: tuple = HEADLIGHT
     colour: tuple = (1.0, 1.0, 1.0)
     background: tuple = (0, 0, 0)
 
@@ -94,21 +95,26 @@ class Outputs:
     depth: Path | None = None
     depth_png: Path | None = None
     stats_json: Path | None = None
+    normals: Path | None = None
+    normals_png: Path | None = None
 
     def paths(self):
-        return [p for p in (self.picture, self.depth, self.depth_png, self.stats_json) if p is not None]
+        return [p for p in (self.picture, self.depth, self.depth_png, self.stats_json, self.normals,
+                            self.normals_png) if p is not None]
 
 
 @dataclass
 class Picture:
-    """A finished picture: ``rgb`` (H, W, 3) uint8, the :class:`DepthImage` and ``seconds`` by stage."""
+    """A finished picture: ``rgb`` (H, W, 3) uint8, the :class:`DepthImage`, ``seconds`` by stage, and the
+    image-space ``normals`` (H, W, 3) it was lit with (NaN in the background)."""
 
     rgb: np.ndarray
     image: DepthImage
     seconds: dict
+    normals: np.ndarray | None = None
 
 
-def picture(segments, view, options=None, progress=None, tree=None):
+def picture(segments, view, options=None, progress=None, tree=None, normals=None):
     """Render ``segments`` from ``view`` and shade it as ``options`` say.
 
     Parameters
@@ -120,6 +126,8 @@ def picture(segments, view, options=None, progress=None, tree=None):
     progress : callable, optional
     tree : RegionOctree, optional
         The object's region octree, kept by the caller for octree methods.
+    normals : SurfaceNormals, optional
+        The object's surface normals (default: those kept with the segments, else from the binary mask).
 
     Returns
     -------
@@ -137,9 +145,18 @@ def picture(segments, view, options=None, progress=None, tree=None):
     image = render(segments, view, options.method, progress, options.supersample, options.clip, options.fit,
                    tree, **options.method_options)
     started = time.perf_counter()
+    normal_image = None
+    if options.shading == "gradient":
+        from .normals import normal_image as at_hits, surface_normals
+
+        if normals is None:
+            if segments.normals is None:
+                segments.normals = surface_normals(segments.to_mask())
+            normals = segments.normals
+        normal_image = at_hits(image.depth, image.view, segments.shape, normals)
     rgb = shade.shade(image.depth, options.shading, image.view.scale, options.light, options.colour,
-                      options.background)
-    return Picture(rgb, image, {"render": image.seconds, "shade": time.perf_counter() - started})
+                      options.background, normal_image)
+    return Picture(rgb, image, {"render": image.seconds, "shade": time.perf_counter() - started}, normal_image)
 
 
 def write_outputs(result, outputs, about=None):
@@ -148,12 +165,19 @@ def write_outputs(result, outputs, about=None):
     ``result.seconds`` may already hold earlier stages (``load``, ``prepare``); ``total`` is the sum of
     all stages.  ``about`` adds fields to the JSON report (e.g. the object's size).
     """
+    if (outputs.normals is not None or outputs.normals_png is not None) and result.normals is None:
+        raise InputError("normals are kept with gradient shading only; drop the normals outputs or shade by "
+                         "gradient", parameter="normals")
     started = time.perf_counter()
     output.write_png(outputs.picture, result.rgb)
     if outputs.depth is not None:
         output.write_npy(outputs.depth, result.image.depth)
     if outputs.depth_png is not None:
         output.write_png(outputs.depth_png, shade.depth_to_uint16(result.image.depth))
+    if outputs.normals is not None:
+        output.write_npy(outputs.normals, result.normals)
+    if outputs.normals_png is not None:
+        output.write_png(outputs.normals_png, shade.normals_to_rgb(result.normals))
     result.seconds["write"] = time.perf_counter() - started
     result.seconds["total"] = sum(v for k, v in result.seconds.items() if k != "total")
     if outputs.stats_json is not None:

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+import numpy as np
+
 from . import io, prep, segments
 from .errors import InputError
 
@@ -76,6 +78,15 @@ class Encoded:
             self._octree = build(self.segments.to_mask())
         return self._octree
 
+    def normals(self):
+        """The surface normals: those kept with the segments (from grey values), else from the binary mask
+        (built now, once)."""
+        if self.segments.normals is None:
+            from .normals import surface_normals
+
+            self.segments.normals = surface_normals(self.segments.to_mask())
+        return self.segments.normals
+
 
 def load_segments(path, read=None, prepare=None, progress=None):
     """The object in ``path``: a ``.vxs`` file, or a slice stack to binarize and encode.
@@ -115,4 +126,33 @@ def load_segments(path, read=None, prepare=None, progress=None):
     meta.update({k: v for k, v in volume.meta.items()
                  if k in ("format", "modality", "units", "series", "orientation", "orientation_from", "reoriented")})
     encoded = segments.encode(mask, info["spacing"], meta)
+    encoded.normals = grey_normals(volume, mask, info, prepare)
+    encoded.meta["normals_from"] = encoded.normals.source
     return Encoded(encoded, {"load": loaded - started, "prepare": time.perf_counter() - loaded})
+
+
+def grey_normals(volume, mask, info, prepare):
+    """The surface normals of ``mask`` from the volume's grey values (trilinear samples of the cropped input at the
+    mask's grid points); from the mask itself when the volume holds only two values (a binary input)."""
+    from scipy import ndimage
+
+    from .normals import surface_normals
+
+    values = prep.crop(volume.values, prepare.crop)
+    if len(np.unique(np.asarray(values[::7, ::7, ::7]))) <= 2:
+        return surface_normals(mask)
+    # a mask grid point k along an axis lies k * voxel / spacing input voxels from the first
+    step = np.array([info["voxel"] / s for s in volume.spacing]) if prepare.resample else np.ones(3)
+
+    if np.allclose(step, 1):                                  # the grid is the input's: read the voxels
+        top = np.array(values.shape[::-1]) - 1
+        flat = np.ravel(values)                              # a view when the volume is not cropped
+        strides = np.array([1, values.shape[2], values.shape[1] * values.shape[2]])
+
+        def sample(points):
+            return flat[np.clip(points, 0, top) @ strides]
+    else:
+        def sample(points):
+            return ndimage.map_coordinates(values, (points * step)[:, ::-1].T, order=1, mode="nearest")
+
+    return surface_normals(mask, sample)

@@ -51,6 +51,7 @@ class Segments:
     offsets: np.ndarray
     spacing: tuple[float, float, float] = (1.0, 1.0, 1.0)
     meta: dict = field(default_factory=dict)
+    normals: object = field(default=None, repr=False, compare=False)   # SurfaceNormals, kept in the .vxs
     @property
     def segment_count(self):
         return int(self.offsets[-1])
@@ -141,12 +142,17 @@ def save(segments, path):
     """Write ``segments`` to a ``.vxs`` file (atomically)."""
     arrays = {"offsets": np.asarray(segments.offsets, "<i8"), "starts": np.asarray(segments.starts, "<i4"),
               "ends": np.asarray(segments.ends, "<i4")}
+    meta = dict(segments.meta)
+    if segments.normals is not None:
+        arrays.update(normal_index=np.asarray(segments.normals.index, "<i8"),
+                      normal_packed=np.asarray(segments.normals.packed, "<i2").ravel())
+        meta["normals_from"] = segments.normals.source
     layout, position = {}, 0
     for name, array in arrays.items():
         layout[name] = {"offset": position, "count": int(array.size), "dtype": array.dtype.str}
         position += -(-array.nbytes // _ALIGN) * _ALIGN
     header = json.dumps({"shape": list(segments.shape), "spacing": list(segments.spacing),
-                         "meta": segments.meta, "arrays": layout}).encode()
+                         "meta": meta, "arrays": layout}).encode()
     data_start = -(-(len(MAGIC) + 8 + len(header)) // _ALIGN) * _ALIGN
     with atomic_output(path) as tmp, open(tmp, "wb") as f:
         f.write(MAGIC + np.uint64(len(header)).tobytes() + header)
@@ -186,5 +192,12 @@ def load(path):
     shape = tuple(header["shape"])
     if arrays["offsets"].size != shape[0] * shape[1] + 1 or arrays["starts"].size != arrays["offsets"][-1]:
         raise InputError(f"{path} is a damaged .vxs file (index and runs disagree); encode it again")
-    return Segments(shape, arrays["starts"], arrays["ends"], arrays["offsets"],
-                    tuple(header["spacing"]), header.get("meta", {}))
+    meta = header.get("meta", {})
+    normals = None
+    if "normal_index" in arrays:                 # files written before normals were kept have none
+        from .normals import SurfaceNormals
+
+        normals = SurfaceNormals(shape, arrays["normal_index"], arrays["normal_packed"].reshape(-1, 2),
+                                 meta.get("normals_from", "grey values"))
+    return Segments(shape, arrays["starts"], arrays["ends"], arrays["offsets"], tuple(header["spacing"]), meta,
+                    normals)

@@ -1,8 +1,9 @@
-"""From depth image to picture: depth shading, gradient shading, 8/16-bit output.
+"""From depth image to picture: Blinn-Phong lighting of surface normals, the paper's depth-gradient shading,
+depth shading, 8/16-bit output.
 
-Gradient shading (Gordon and Reynolds; the dynamic-screen paper's section 2.4)
-estimates the surface normal at each pixel from the gradient of the depth
-image, so the cost depends on the image size only.
+The default lights the grey-level gradient normals (:mod:`voxrender.normals`, Höhne and Bernstein's shading)
+with a headlight.  Depth-gradient shading (Gordon and Reynolds; the dynamic-screen paper's section 2.4)
+estimates the normal at each pixel from the gradient of the depth image; it is kept as ``depth-gradient``.
 """
 
 from __future__ import annotations
@@ -11,7 +12,8 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["shade", "depth_shading", "gradient_shading", "surface_normals", "depth_to_uint16"]
+__all__ = ["shade", "SHADINGS", "HEADLIGHT", "blinn_phong", "depth_shading", "gradient_shading", "surface_normals",
+           "depth_to_uint16", "normals_to_rgb"]
 
 
 def _depth_range(depth):
@@ -120,35 +122,86 @@ def gradient_shading(depth, scale=1.0, light=(0.0, 0.0, -1.0), ambient=0.1, dept
     return np.where(covered, (ambient + (1 - ambient) * lambert) * cue, 0.0)
 
 
-def shade(depth, mode="gradient", scale=1.0, light=(0.0, 0.0, -1.0), colour=(1.0, 1.0, 1.0),
-          background=(0, 0, 0)):
+# A headlight a little above and to the left of the viewer (image space: X' right, Y' down, Z' away).
+HEADLIGHT = (-0.3, -0.4, -1.0)
+SHADINGS = ("gradient", "depth-gradient", "depth")
+
+
+def blinn_phong(normals, depth, light=HEADLIGHT, ambient=0.12, diffuse=0.78, specular=0.22, shininess=24.0,
+                depth_cue=0.2):
+    """Brightness in [0, 1] of unit normals ``(H, W, 3)`` (image space) lit by a directional light, seen from
+    ``-Z'``: ambient, Lambert diffuse and a Blinn-Phong highlight, darkened a little with depth.
+
+    >>> flat = np.zeros((1, 1, 3)); flat[..., 2] = -1
+    >>> round(float(blinn_phong(flat, np.zeros((1, 1)), light=(0, 0, -1))[0, 0]), 3)
+    1.0
+    """
+    light = np.asarray(light, dtype=np.float32)
+    if light.shape != (3,) or not np.linalg.norm(light) > 0:
+        raise InputError(f"{tuple(light)} must be a non-zero direction x, y, z", parameter="light")
+    light = light / np.linalg.norm(light)
+    halfway = light + np.array([0, 0, -1], np.float32)
+    halfway = halfway / max(float(np.linalg.norm(halfway)), 1e-6)
+    n = np.nan_to_num(np.asarray(normals, dtype=np.float32))
+    lambert = np.clip(n @ light, 0, 1)
+    highlight = np.clip(n @ halfway, 0, 1) ** shininess
+    covered, near, far = _depth_range(depth)
+    cue = 1 - depth_cue * np.where(covered, (np.where(covered, depth, near) - near) / (far - near), 0)
+    total = ambient + diffuse * lambert + specular * highlight
+    return np.where(covered, np.clip(total, 0, 1) * cue, 0.0)
+
+
+def shade(depth, mode="gradient", scale=1.0, light=HEADLIGHT, colour=(1.0, 1.0, 1.0), background=(0, 0, 0),
+          normals=None):
     """An 8-bit RGB picture ``(H, W, 3)`` of a depth image.
 
     Parameters
     ----------
     depth : ndarray (H, W)
-    mode : {"gradient", "depth"}
+    mode : {"gradient", "depth-gradient", "depth"}
+        ``gradient``: Blinn-Phong lighting of ``normals`` (grey-level gradient normals, see
+        :mod:`voxrender.normals`), with the depth gradient's where they are missing; ``depth-gradient``: the
+        paper's Lambert shading of the depth gradient; ``depth``: brightness falling with depth.
     scale : float
-        Pixels per voxel (gradient shading measures slopes in voxel units).
+        Pixels per voxel (the depth gradient is measured in voxel units).
     light : 3 floats
-        Direction toward the light in image space (gradient mode).
+        Direction toward the light in image space.
     colour : 3 floats in [0, 1]
         Colour of a fully lit surface.
     background : 3 ints in [0, 255]
+    normals : ndarray (H, W, 3), optional
+        Unit normals in image space, NaN where unknown (``gradient`` mode).
 
-    >>> rgb = shade(np.array([[0.0, np.inf]]), background=(0, 0, 255))
+    >>> rgb = shade(np.array([[0.0, np.inf]]), "depth", background=(0, 0, 255))
     >>> rgb.tolist()
     [[[255, 255, 255], [0, 0, 255]]]
     """
     if mode == "gradient":
+        from_depth = surface_normals(depth, scale, 0.7)
+        if normals is None:
+            normals = from_depth
+        else:
+            normals = np.where(np.isfinite(normals).all(axis=2, keepdims=True), normals, from_depth)
+        brightness = blinn_phong(normals, depth, light)
+    elif mode == "depth-gradient":
         brightness = gradient_shading(depth, scale, light)
     elif mode == "depth":
         brightness = depth_shading(depth)
     else:
-        raise InputError(f"unknown shading {mode!r}; choose gradient or depth", parameter="shading")
+        raise InputError(f"unknown shading {mode!r}; choose {', '.join(SHADINGS)}", parameter="shading")
     rgb = brightness[..., None] * np.asarray(colour, dtype=float) * 255
     rgb = np.where(np.isfinite(depth)[..., None], rgb, np.asarray(background, dtype=float))
     return np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
+
+
+def normals_to_rgb(normals):
+    """An 8-bit RGB normal map: each component from [-1, 1] to [0, 255]; black where unknown.
+
+    >>> normals_to_rgb(np.array([[[0.0, 0.0, -1.0], [np.nan] * 3]])).tolist()
+    [[[128, 128, 0], [0, 0, 0]]]
+    """
+    known = np.isfinite(normals).all(axis=2, keepdims=True)
+    return np.where(known, np.clip(np.rint((np.nan_to_num(normals) + 1) * 127.5), 0, 255), 0).astype(np.uint8)
 
 
 def depth_to_uint16(depth):
