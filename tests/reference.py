@@ -38,11 +38,12 @@ def surface(mask):
     return mask & ~interior
 
 
-def hits(mask, alpha, beta, gamma, size, scale, voxels=None, chunk=20_000, shrink=0.0):
+def hits(mask, alpha, beta, gamma, size, scale, voxels=None, chunk=20_000, shrink=0.0, middle=(0.0, 0.0)):
     """``(pixel, entry, exit, voxel index, voxels)`` of every (pixel, cube) pair whose ray meets the closed cube.
 
     ``voxels`` (an ``(N, 3)`` array of x, y, z) defaults to the surface voxels of ``mask``; ``shrink`` makes
-    the cubes smaller by that much on every side (to tell rays through a cube from rays along its surface).
+    the cubes smaller by that much on every side (to tell rays through a cube from rays along its surface);
+    ``middle`` is the image point at the middle of the picture.
     """
     nz, ny, nx = mask.shape
     height, width = size
@@ -57,16 +58,16 @@ def hits(mask, alpha, beta, gamma, size, scale, voxels=None, chunk=20_000, shrin
     for start in range(0, len(voxels), chunk):
         p = voxels[start:start + chunk].astype(float)
         image = (p - centre) @ r.T                          # X', Y', Z' of the cube centres
-        first_col = np.ceil((image[:, 0] - radius) * scale + width / 2 - 0.5).astype(int)
-        first_row = np.ceil((image[:, 1] - radius) * scale + height / 2 - 0.5).astype(int)
+        first_col = np.ceil((image[:, 0] - middle[0] - radius) * scale + width / 2 - 0.5).astype(int)
+        first_row = np.ceil((image[:, 1] - middle[1] - radius) * scale + height / 2 - 0.5).astype(int)
         cols = first_col[:, None, None] + np.arange(side)[None, None, :]
         rows = first_row[:, None, None] + np.arange(side)[None, :, None]
         cols, rows = np.broadcast_arrays(cols, rows)
         inside = (cols >= 0) & (cols < width) & (rows >= 0) & (rows < height)
         owner = np.broadcast_to(np.arange(len(p))[:, None, None], cols.shape)[inside]
         cols, rows = cols[inside], rows[inside]
-        big_x = (cols + 0.5 - width / 2) / scale
-        big_y = (rows + 0.5 - height / 2) / scale
+        big_x = (cols + 0.5 - width / 2) / scale + middle[0]
+        big_y = (rows + 0.5 - height / 2) / scale + middle[1]
         origin = centre + big_x[:, None] * r[0] + big_y[:, None] * r[1]        # the ray at Z' = 0
         low, high = p[owner] - 0.5 - EPS + shrink, p[owner] + 0.5 + EPS - shrink
         near = np.full(len(owner), -np.inf)
@@ -86,25 +87,26 @@ def hits(mask, alpha, beta, gamma, size, scale, voxels=None, chunk=20_000, shrin
     return pixels, near, far, owners, voxels
 
 
-def exact(mask, alpha, beta, gamma, size, scale, shrink=0.0):
+def exact(mask, alpha, beta, gamma, size, scale, shrink=0.0, middle=(0.0, 0.0)):
     """The contract's depth image ``(H, W)`` of ``mask[z, y, x]`` (``+inf`` where the ray meets nothing).
 
     With ``shrink`` (e.g. 1e-6), only cubes that the ray passes through, not along their surface, count.
     """
-    pixels, near, _, _, _ = hits(mask, alpha, beta, gamma, size, scale, shrink=shrink)
+    pixels, near, _, _, _ = hits(mask, alpha, beta, gamma, size, scale, shrink=shrink, middle=middle)
     depth = np.full(size[0] * size[1], np.inf)
     np.minimum.at(depth, pixels, near)
     return depth.reshape(size)
 
 
-def ties(mask, alpha, beta, gamma, size, scale):
+def ties(mask, alpha, beta, gamma, size, scale, middle=(0.0, 0.0)):
     """Pixels whose ray meets some cube only on its surface (along a face, an edge, or at a corner).
 
     Such cubes have no depth order along the ray (a ray along the face between two slices is in both), and a
     painter may keep one of them, or a cube behind, where the contract takes the nearest.  Returns a bool image.
     """
-    pixels, _, _, owners, voxels = hits(mask, alpha, beta, gamma, size, scale)
-    inner, _, _, inner_owners, _ = hits(mask, alpha, beta, gamma, size, scale, voxels=voxels, shrink=1e-6)
+    pixels, _, _, owners, voxels = hits(mask, alpha, beta, gamma, size, scale, middle=middle)
+    inner, _, _, inner_owners, _ = hits(mask, alpha, beta, gamma, size, scale, voxels=voxels, shrink=1e-6,
+                                        middle=middle)
     width = size[1]
     through = set(zip(inner.tolist(), inner_owners.tolist()))
     surface_only = np.array([(p, o) not in through for p, o in zip(pixels.tolist(), owners.tolist())], bool)
@@ -113,9 +115,9 @@ def ties(mask, alpha, beta, gamma, size, scale):
     return tie.reshape(size)
 
 
-def entries(mask, alpha, beta, gamma, size, scale):
+def entries(mask, alpha, beta, gamma, size, scale, middle=(0.0, 0.0)):
     """For each pixel, the entry depths of the surface cubes its ray meets, sorted (a dict pixel -> array)."""
-    pixels, near, _, _, _ = hits(mask, alpha, beta, gamma, size, scale)
+    pixels, near, _, _, _ = hits(mask, alpha, beta, gamma, size, scale, middle=middle)
     order = np.lexsort((near, pixels))
     pixels, near = pixels[order], near[order]
     bounds = np.flatnonzero(np.r_[True, pixels[1:] != pixels[:-1], True])

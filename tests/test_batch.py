@@ -171,3 +171,17 @@ def test_octree_pictures_of_one_object_share_its_octree(stacks, tmp_path):
     stamp = (path.stat().st_size, path.stat().st_mtime_ns)
     assert batch._encoded(str(path), stamp) is batch._encoded(str(path), stamp)
     assert batch._encoded(str(path), stamp)._octree is not None
+
+
+def test_a_turntable_keeps_one_scale_and_centres_every_frame(tmp_path, stacks):
+    work = items([stacks / "box.npy"], batch.parse_views(turntable_count=4), size=(40, 40))
+    rows = batch.run_batch(work, tmp_path, jobs=1, animations=[])
+    assert [row["status"] for row in rows] == ["ok"] * 4
+    pictures = [iio.imread(row["output"]).any(axis=2) for row in rows]
+    spans = []
+    for covered in pictures:
+        rows_, columns = np.nonzero(covered)
+        spans.append((rows_.max() - rows_.min() + 1, columns.max() - columns.min() + 1))
+        assert abs((columns.max() + columns.min()) / 2 - 19.5) <= 1.5      # each frame centred
+    # one scale for all: the box's height (along z, up in the picture) is the same in every frame
+    assert len({height for height, _ in spans}) == 1

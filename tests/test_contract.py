@@ -49,17 +49,17 @@ def preimage_misses(mask, view):
     """Pixels where the box visible at the final pixel centre lit none of the 3 x 3 pre-image pixels around it."""
     pre_view = preimage_view(view, 2)
     _, _, (owner, boxes) = render_ftb(segments.encode(mask), pre_view, items=True)
-    pixels, near, _, voxel_index, voxels = hits(mask, view.alpha, view.beta, view.gamma, view.size, view.scale)
+    pixels, near, _, voxel_index, voxels = hits(mask, view.alpha, view.beta, view.gamma, view.size, view.scale,
+                                                middle=view.centre)
     nearest = np.full(view.size[0] * view.size[1], np.inf)
     np.minimum.at(nearest, pixels, near)
     missed = np.zeros(view.size, bool)
     g = np.radians(view.gamma)
     for pixel in np.unique(pixels):
         row, column = divmod(int(pixel), view.size[1])
-        x = (column + 0.5 - view.size[1] / 2) / view.scale
-        y = (row + 0.5 - view.size[0] / 2) / view.scale
-        u = int(np.rint((np.cos(g) * x + np.sin(g) * y) * pre_view.scale + pre_view.size[1] / 2 - 0.5))
-        v = int(np.rint((-np.sin(g) * x + np.cos(g) * y) * pre_view.scale + pre_view.size[0] / 2 - 0.5))
+        x, y = view.pixel_centres(column, row)
+        u, v = (int(np.rint(c)) for c in pre_view.pixel_index(np.cos(g) * x + np.sin(g) * y,
+                                                                -np.sin(g) * x + np.cos(g) * y))
         nine = {int(owner[b, a]) for b in range(v - 1, v + 2) for a in range(u - 1, u + 2)
                 if 0 <= a < pre_view.size[1] and 0 <= b < pre_view.size[0]}
         visible = voxels[voxel_index[(pixels == pixel) & (near <= nearest[pixel] + 1e-9)]]
@@ -71,7 +71,7 @@ def preimage_misses(mask, view):
 
 def check(depth, mask, method, view):
     """Assert the contract; return how many pixels were the named exceptions."""
-    reference = exact(mask, view.alpha, view.beta, view.gamma, view.size, view.scale)
+    reference = exact(mask, view.alpha, view.beta, view.gamma, view.size, view.scale, middle=view.centre)
     wrong = np.isfinite(depth) != np.isfinite(reference)
     both = np.isfinite(depth) & np.isfinite(reference)
     wrong[both] |= np.abs(depth[both] - reference[both]) > 1e-5
@@ -79,9 +79,10 @@ def check(depth, mask, method, view):
         return 0
     allowed = np.zeros(view.size, bool)
     if method in ORDER_DEPENDENT:
-        tie = ties(mask, view.alpha, view.beta, view.gamma, view.size, view.scale)
-        met = entries(mask, view.alpha, view.beta, view.gamma, view.size, view.scale)
-        through = exact(mask, view.alpha, view.beta, view.gamma, view.size, view.scale, shrink=1e-6)
+        tie = ties(mask, view.alpha, view.beta, view.gamma, view.size, view.scale, view.centre)
+        met = entries(mask, view.alpha, view.beta, view.gamma, view.size, view.scale, view.centre)
+        through = exact(mask, view.alpha, view.beta, view.gamma, view.size, view.scale, shrink=1e-6,
+                        middle=view.centre)
         for row, column in zip(*np.nonzero(wrong & tie)):
             found = met.get(row * view.size[1] + column, np.zeros(0))
             allowed[row, column] = bool(np.any(np.abs(found - depth[row, column]) <= 1e-5)) or (
@@ -98,6 +99,14 @@ def test_every_method_meets_the_contract(ball, method, options, alpha, beta, gam
     view = View(alpha, beta, gamma, SIZE, scale)
     for mask in (ball, torus(), specks()):
         check(render(segments.encode(mask), view, method, **options).depth, mask, method, view)
+
+
+@pytest.mark.parametrize("method,options", METHODS, ids=lambda m: m if isinstance(m, str) else "")
+def test_a_picture_centred_off_the_volume_centre_meets_the_contract(ball, method, options):
+    """The default framing centres the object as the view sees it: pixel centres shift by ``View.centre``."""
+    for angles in ((31, 19, 0), (-45, 15, 10)):
+        view = View(*angles, SIZE, 1.7, centre=(2.3, -1.6))
+        check(render(segments.encode(ball), view, method, **options).depth, ball, method, view)
 
 
 @pytest.mark.parametrize("method,options", METHODS, ids=lambda m: m if isinstance(m, str) else "")

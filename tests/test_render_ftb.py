@@ -104,3 +104,19 @@ def test_vhf_head_ftb_equals_btf():
     for alpha, beta in [(-45, 15), (60, 120), (30, 10)]:
         view = View(alpha, beta, 0, (200, 200), 0.8)
         assert_same(render_ftb(encoded, view)[0], render_btf(encoded, view)[0])
+
+
+def test_production_equals_literal_off_centre(ball):
+    """With the picture centred off the volume centre (the default framing), the literal versions follow."""
+    from voxrender.render.btf import render_btf_literal
+    from voxrender.render.octree_btf import render_octree_btf
+    from voxrender.render.octree_btf_literal import render_octree_btf_literal
+
+    encoded = segments.encode(ball)
+    view = View(40, 25, 0, (30, 32), 1.6, centre=(1.7, -2.2))
+    for fast, slow in ((render_ftb, render_ftb_literal), (render_btf, render_btf_literal),
+                       (render_octree_btf, render_octree_btf_literal)):
+        (depth, stats), (literal, literal_stats) = fast(encoded, view), slow(encoded, view)
+        stats.pop("black_seconds", None)
+        assert stats == literal_stats
+        assert_same(depth, literal)

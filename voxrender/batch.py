@@ -301,8 +301,8 @@ def render_task(item, view, index, segments_path, out_dir, encode_seconds):
         encoded = _encoded(str(segments_path), (status.st_size, status.st_mtime_ns))
         tree = encoded.octree() if method_record(item.method).octree else None
         normals = encoded.normals() if item.options.shading == "gradient" else None
-        result = picture(encoded.segments, item.options.view(view.alpha, view.beta, view.gamma), item.options,
-                         tree=tree, normals=normals)
+        result = picture(encoded.segments, framed(item, view, encoded.segments), item.options, tree=tree,
+                         normals=normals)
         for path in outputs.paths():
             path.parent.mkdir(parents=True, exist_ok=True)
         seconds = write_outputs(result, outputs, about(encoded.segments))   # this picture's stages
@@ -314,6 +314,17 @@ def render_task(item, view, index, segments_path, out_dir, encode_seconds):
     except Exception as exc:  # reported in the summary; the batch goes on
         row.update(status="failed", error=f"internal error: {type(exc).__name__}: {exc}")
     return row
+
+
+def framed(item, view, encoded):
+    """The view of ``item`` at ``view``'s angles.  Framing the object (no scale given) over several views, one
+    scale fits them all, so the size does not jump between the frames of a turntable; each view is centred."""
+    chosen = item.options.view(view.alpha, view.beta, view.gamma)
+    if item.options.scale is not None or item.options.fit != "object" or len(item.views) < 2:
+        return chosen
+    box = encoded.bounding_box()
+    scale = min(item.options.view(v.alpha, v.beta, v.gamma).fitted(encoded.shape, box).scale for v in item.views)
+    return replace(chosen, scale=scale, centre=chosen.fitted(encoded.shape, box).centre)
 
 
 def is_done(path, size):

@@ -158,9 +158,10 @@ def _render_options_decorator(command):
                      help="Discrete rays of --method raycast: 6, 26, or 26 switching to 6 near the object "
                           "(default adaptive)."),
         click.option("--size", default="512", show_default=True, metavar="N|WxH", help="Image size in pixels."),
-        click.option("--scale", type=float, help="Pixels per voxel (default: fit the volume at any rotation)."),
-        click.option("--fit", type=click.Choice(["volume", "object"]), default="volume", show_default=True,
-                     help="Without --scale: fit the whole volume, or only the object, at any rotation."),
+        click.option("--scale", type=float, help="Pixels per voxel (default: see --fit)."),
+        click.option("--fit", type=click.Choice(["object", "volume"]), default="object", show_default=True,
+                     help="Without --scale: frame the object as this view sees it, or the whole volume at any "
+                          "rotation (a batch of several views: one scale for all)."),
         click.option("--clip-x", metavar="A:B", help="Keep voxels with A <= x < B (object space, after resampling)."),
         click.option("--clip-y", metavar="A:B", help="Keep voxels with A <= y < B."),
         click.option("--clip-z", metavar="A:B", help="Keep voxels with A <= z < B."),

@@ -37,8 +37,8 @@ class RenderOptions:
         The method's own options (e.g. ``{"connectivity": "6"}`` for ``raycast``).
     clip : Clip, optional
         Clip limits and the cut plane.
-    fit : {"volume", "object"}
-        What an unset ``scale`` fits at any rotation.
+    fit : {"object", "volume"}
+        How an unset ``scale`` frames the picture: the object as the view sees it, or the volume at any rotation.
     size : (H, W)
         Picture size in pixels.
     scale : float, optional
@@ -57,7 +57,7 @@ class RenderOptions:
     method: str = DEFAULT_METHOD
     method_options: dict = field(default_factory=dict)
     clip: Clip | None = None
-    fit: str = "volume"
+    fit: str = "object"
     size: tuple = (512, 512)
     scale: float | None = None
     supersample: int = 2
@@ -74,8 +74,8 @@ class RenderOptions:
                              f"(its options: {', '.join(record.options) or 'none'})", parameter=unknown[0])
         if self.shading not in SHADINGS:
             raise InputError(f"unknown shading {self.shading!r}; choose {' or '.join(SHADINGS)}", parameter="shading")
-        if self.fit not in ("volume", "object"):
-            raise InputError(f"{self.fit!r}: choose 'volume' or 'object'", parameter="fit")
+        if self.fit not in ("object", "volume"):
+            raise InputError(f"{self.fit!r}: choose 'object' or 'volume'", parameter="fit")
         light = np.asarray(self.light, dtype=float)
         if light.shape != (3,) or not np.all(np.isfinite(light)) or not np.linalg.norm(light) > 0:
             raise InputError(f"{self.light} must be a non-zero direction x, y, z", parameter="light")

@@ -153,6 +153,6 @@ def grey_normals(volume, mask, info, prepare):
             return flat[np.clip(points, 0, top) @ strides]
     else:
         def sample(points):
-            return ndimage.map_coordinates(values, (points * step)[:, ::-1].T, order=1, mode="nearest")
+            return ndimage.map_coordinates(values, (points * step)[:, ::-1].T, order=3, mode="nearest")
 
     return surface_normals(mask, sample)

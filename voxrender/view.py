@@ -9,6 +9,7 @@ has its centre at ``X' = (i + 0.5 - W/2) / scale``, ``Y' = (j + 0.5 - H/2) / sca
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, replace
 from functools import cached_property
@@ -147,7 +148,9 @@ def fit_scale(shape, size, box=None):
 class View:
     """A view of the contract: angles in degrees, ``size = (H, W)`` pixels, ``scale`` pixels per voxel.
 
-    ``scale=None`` means: fit the volume at any rotation (see :func:`fit_scale`).
+    ``scale=None`` means: fitted when rendered (see :meth:`fitted`).  ``centre`` is the image-space point
+    ``(X', Y')`` at the middle of the picture: the contract's ``(0, 0)`` (the volume centre) unless the
+    default framing centres the object as this view sees it.
 
     Examples
     --------
@@ -163,6 +166,7 @@ class View:
     gamma: float = 0.0
     size: tuple[int, int] = (512, 512)
     scale: float | None = None
+    centre: tuple = (0.0, 0.0)
 
     def __post_init__(self):
         height, width = self.size
@@ -217,7 +221,8 @@ class View:
         height, width = self.size
         columns = np.arange(width) if columns is None else columns
         rows = np.arange(height) if rows is None else rows
-        return (columns + 0.5 - width / 2) / self.scale, (rows + 0.5 - height / 2) / self.scale
+        return ((columns + 0.5 - width / 2) / self.scale + self.centre[0],
+                (rows + 0.5 - height / 2) / self.scale + self.centre[1])
 
     def pixel_index(self, x, y):
         """Continuous ``(column, row)`` of image points ``(X', Y')``: whole numbers at pixel centres.
@@ -226,11 +231,35 @@ class View:
         [0.0, 1.0]
         """
         height, width = self.size
-        return np.asarray(x) * self.scale + width / 2 - 0.5, np.asarray(y) * self.scale + height / 2 - 0.5
+        return ((np.asarray(x) - self.centre[0]) * self.scale + width / 2 - 0.5,
+                (np.asarray(y) - self.centre[1]) * self.scale + height / 2 - 0.5)
 
-    def fitted(self, shape, box=None):
-        """This view with ``scale`` set (when it is ``None``: fitted to the volume, or to ``box``)."""
-        return self if self.scale is not None else replace(self, scale=fit_scale(shape, self.size, box))
+    def fitted(self, shape, box=None, fit="object", margin=0.05):
+        """This view with ``scale`` set, when it is ``None``.
+
+        ``fit="object"`` (with ``box``, the object's bounding box ``((z0, z1), (y0, y1), (x0, x1))``, inclusive
+        voxel indices): the scale and centre that frame the box as this view sees it, with a ``margin`` on
+        every side; ``fit="volume"``: the whole volume at any rotation, centred on the volume centre.
+
+        >>> v = View(size=(100, 100)).fitted((10, 10, 10), ((0, 9), (0, 9), (0, 4)))
+        >>> round(v.scale, 3), [round(c, 3) for c in v.centre]
+        (9.524, [-2.5, 0.0])
+        """
+        if self.scale is not None:
+            return self
+        if fit == "volume" or box is None:
+            return replace(self, scale=fit_scale(shape, self.size), centre=(0.0, 0.0))
+        (x0, x1), (y0, y1) = self.extent(shape, box)
+        height, width = self.size
+        scale = min(width / ((x1 - x0) * (1 + 2 * margin)), height / ((y1 - y0) * (1 + 2 * margin)))
+        return replace(self, scale=float(scale), centre=((x0 + x1) / 2, (y0 + y1) / 2))
+
+    def extent(self, shape, box):
+        """``((X'min, X'max), (Y'min, Y'max))``: the image-space extent of a bounding box's cubes in this view."""
+        (z0, z1), (y0, y1), (x0, x1) = box
+        corners = np.array(list(itertools.product((x0 - 0.5, x1 + 0.5), (y0 - 0.5, y1 + 0.5), (z0 - 0.5, z1 + 0.5))))
+        xs, ys, _ = self.to_image(*corners.T, shape)
+        return (float(xs.min()), float(xs.max())), (float(ys.min()), float(ys.max()))
 
     @classmethod
     def preset(cls, name, **kwargs):

@@ -105,7 +105,7 @@ class DepthImage:
         return np.isfinite(self.depth)
 
 
-def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, clip=None, fit="volume",
+def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, clip=None, fit="object",
            tree=None, **options):
     """Render ``segments`` with ``method`` from ``view``.
 
@@ -123,9 +123,9 @@ def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, 
         The pre-image's scale over the picture's, for methods that turn a pre-image by gamma.
     clip : Clip, optional
         Clip limits and cut plane.
-    fit : {"volume", "object"}
-        What an unset scale fits at any rotation: the whole volume (the contract's default) or the
-        object's bounding box (it still turns about the volume centre).
+    fit : {"object", "volume"}
+        How an unset scale frames the picture: the object as this view sees it (its projected bounding box,
+        centred, with a small margin), or the whole volume at any rotation, centred on the volume centre.
     tree : RegionOctree, optional
         The object's region octree, for octree methods (built here when not given).
     **options
@@ -151,11 +151,11 @@ def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, 
                          parameter=unknown[0])
     if not segments.segment_count:
         raise InputError("the object is empty: no voxel reaches the threshold")
-    if fit not in ("volume", "object"):
-        raise InputError(f"{fit!r}: choose 'volume' or 'object'", parameter="fit")
+    if fit not in ("object", "volume"):
+        raise InputError(f"{fit!r}: choose 'object' or 'volume'", parameter="fit")
     if int(supersample) < 1:
         raise InputError(f"{supersample!r}: must be a whole number >= 1", parameter="supersample")
-    view = view.fitted(segments.shape, segments.bounding_box() if fit == "object" else None)
+    view = view.fitted(segments.shape, segments.bounding_box(), fit)
     if record.octree:
         options["tree"] = tree
     started = time.perf_counter()

@@ -142,7 +142,7 @@ def render_btf_literal(segments, view, clip=None):
             for x in (voxels[::-1] if r[2][0] > 0 else voxels):
                 stats["voxels_projected"] += 1
                 for row, column, depth in oracle.box_pixels(r, (x, y, z), (0.5, 0.5, 0.5), centre, size,
-                                                            view.scale):
+                                                            view.scale, tuple(view.centre)):
                     image[row, column] = depth                # painted over what is behind
                     stats["pixel_writes"] += 1
         stats["slices"] += slice_has_voxels

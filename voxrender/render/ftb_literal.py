@@ -103,7 +103,7 @@ def render_ftb_literal(segments, view, clip=None):
     :func:`~voxrender.render.ftb.render_ftb`.
     """
     r = oracle.rotation(view.alpha, view.beta)
-    size, scale = tuple(view.size), view.scale
+    size, scale, middle = tuple(view.size), view.scale, tuple(view.centre)
     height, width = size
     nz, ny, nx = segments.shape
     centre = ((nx - 1) / 2, (ny - 1) / 2, (nz - 1) / 2)
@@ -137,20 +137,20 @@ def render_ftb_literal(segments, view, clip=None):
     if all(lo <= hi for lo, hi in limits):
         box_centre = tuple((lo + hi) / 2 for lo, hi in limits)
         half = tuple((hi - lo + 1) / 2 for lo, hi in limits)
-        first, last = oracle.box_scanlines(r, box_centre, half, centre, size, scale)
+        first, last = oracle.box_scanlines(r, box_centre, half, centre, size, scale, middle)
         for line in range(max(first, 0), min(last, height - 1) + 1):
-            y = oracle.pixel_centre(0, line, size, scale)[1]
-            span = oracle.box_scanline_span(r, box_centre, half, centre, y, size, scale)
+            y = oracle.pixel_centre(0, line, size, scale, middle)[1]
+            span = oracle.box_scanline_span(r, box_centre, half, centre, y, size, scale, middle)
             if span is not None:
                 chains[line] = Unlit(*walk(*span))
     stats["unlit_segments_start"] = stats["unlit_segments_peak"] = _count(chains)
 
     def paint(i, j, box):
         line, box_centre, half = box
-        y = oracle.pixel_centre(0, line, size, scale)[1]
+        y = oracle.pixel_centre(0, line, size, scale, middle)[1]
         for walk_x in range(i, j + 1):
             column = width - 1 - walk_x if mirror else walk_x
-            x = oracle.pixel_centre(column, line, size, scale)[0]
+            x = oracle.pixel_centre(column, line, size, scale, middle)[0]
             image[line, column] = oracle.ray_entry(r, x, y, box_centre, half, centre)
             stats["pixels_lit"] += 1
 
@@ -168,13 +168,13 @@ def render_ftb_literal(segments, view, clip=None):
             stats["rows_read"] += 1
             stats["segments_read"] += len(runs)
             boxes = [(((start + end) / 2, y, z), ((end - start + 1) / 2, 0.5, 0.5)) for start, end in runs]
-            first, last = oracle.box_scanlines(r, *boxes[0], centre, size, scale)   # Y' does not vary along x
+            first, last = oracle.box_scanlines(r, *boxes[0], centre, size, scale, middle)   # Y' does not vary along x
             calls = full = 0
             for line in range(max(first, 0), min(last, height - 1) + 1):
-                scan_y = oracle.pixel_centre(0, line, size, scale)[1]
+                scan_y = oracle.pixel_centre(0, line, size, scale, middle)[1]
                 spans = []
                 for box_centre, half in boxes:
-                    span = oracle.box_scanline_span(r, box_centre, half, centre, scan_y, size, scale)
+                    span = oracle.box_scanline_span(r, box_centre, half, centre, scan_y, size, scale, middle)
                     if span is not None:
                         spans.append((*walk(*span), (line, box_centre, half)))
                 spans.sort(key=lambda span: span[0])  # walk order; stable, so ties keep front-to-back order

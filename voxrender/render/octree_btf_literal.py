@@ -43,7 +43,7 @@ class FaceScan:
     def __init__(self, tree, view, shape):
         self.tree = tree
         self.r = oracle.rotation(view.alpha, view.beta, view.gamma)
-        self.size, self.scale = tuple(view.size), view.scale
+        self.size, self.scale, self.middle = tuple(view.size), view.scale, tuple(view.centre)
         nz, ny, nx = shape
         self.centre = ((nx - 1) / 2, (ny - 1) / 2, (nz - 1) / 2)
 
@@ -58,7 +58,7 @@ class FaceScan:
         box_centre[axis] += side * side_length / 2
         half = [side_length / 2] * 3
         half[axis] = 0.0
-        found = oracle.box_pixels(self.r, box_centre, half, self.centre, self.size, self.scale)
+        found = oracle.box_pixels(self.r, box_centre, half, self.centre, self.size, self.scale, self.middle)
         width = self.size[1]
         return [(row * width + column, depth) for row, column, depth in found], len({row for row, _, _ in found})
 

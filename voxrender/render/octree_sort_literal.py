@@ -73,7 +73,7 @@ def _render(segments, view, clip, tree, codes_in_order, keep):
     counts = {"fragments": 0, "writes": 0}
     for code in codes_in_order(codes, tree.n, vpn):
         for row, column, depth in oracle.box_pixels(r, _decode(code, tree.n), (0.5, 0.5, 0.5), centre,
-                                                    tuple(view.size), view.scale):
+                                                    tuple(view.size), view.scale, tuple(view.centre)):
             pixel = row * width + column
             counts["fragments"] += 1
             if keep(image[pixel], depth):

@@ -53,10 +53,10 @@ def view_plane_normal(r):
     return tuple(-v for v in r[2])
 
 
-def pixel_centre(column, row, size, scale):
-    """``(X', Y')`` of a pixel centre."""
+def pixel_centre(column, row, size, scale, centre=(0.0, 0.0)):
+    """``(X', Y')`` of a pixel centre; ``centre`` is the image point at the middle of the picture."""
     height, width = size
-    return (column + 0.5 - width / 2) / scale, (row + 0.5 - height / 2) / scale
+    return (column + 0.5 - width / 2) / scale + centre[0], (row + 0.5 - height / 2) / scale + centre[1]
 
 
 def to_image(r, point, centre):
@@ -89,14 +89,15 @@ def _corners(box_centre, half):
             for s in ((i & 1, (i >> 1) & 1, (i >> 2) & 1) for i in range(8))]
 
 
-def box_scanlines(r, box_centre, half, centre, size, scale):
-    """First and last pixel row whose centre's scanline crosses the box's projection (may lie off the picture)."""
-    ys = [to_image(r, corner, centre)[1] for corner in _corners(box_centre, half)]
+def box_scanlines(r, box_centre, half, centre, size, scale, middle=(0.0, 0.0)):
+    """First and last pixel row whose centre's scanline crosses the box's projection (may lie off the picture);
+    ``middle`` is the image point at the middle of the picture."""
+    ys = [to_image(r, corner, centre)[1] - middle[1] for corner in _corners(box_centre, half)]
     height = size[0]
     return (math.ceil(min(ys) * scale + height / 2 - 0.5 - EPS), math.floor(max(ys) * scale + height / 2 - 0.5 + EPS))
 
 
-def box_scanline_span(r, box_centre, half, centre, y, size, scale):
+def box_scanline_span(r, box_centre, half, centre, y, size, scale, middle=(0.0, 0.0)):
     """Pixel columns ``(first, last)`` of the box's projection on the scanline ``Y' = y`` (``None``: empty).
 
     The box's 12 edges are projected and intersected with the scanline; the projection's cross-section
@@ -119,22 +120,22 @@ def box_scanline_span(r, box_centre, half, centre, y, size, scale):
     if not crossings:
         return None
     width = size[1]
-    first = max(math.ceil(min(crossings) * scale + width / 2 - 0.5 - EPS), 0)
-    last = min(math.floor(max(crossings) * scale + width / 2 - 0.5 + EPS), width - 1)
+    first = max(math.ceil((min(crossings) - middle[0]) * scale + width / 2 - 0.5 - EPS), 0)
+    last = min(math.floor((max(crossings) - middle[0]) * scale + width / 2 - 0.5 + EPS), width - 1)
     return (first, last) if first <= last else None
 
 
-def box_pixels(r, box_centre, half, centre, size, scale):
+def box_pixels(r, box_centre, half, centre, size, scale, middle=(0.0, 0.0)):
     """``[(row, column, depth), ...]``: every pixel whose ray enters the box, with the entry depth, row by row."""
-    first, last = box_scanlines(r, box_centre, half, centre, size, scale)
+    first, last = box_scanlines(r, box_centre, half, centre, size, scale, middle)
     found = []
     for row in range(max(first, 0), min(last, size[0] - 1) + 1):
-        y = pixel_centre(0, row, size, scale)[1]
-        span = box_scanline_span(r, box_centre, half, centre, y, size, scale)
+        y = pixel_centre(0, row, size, scale, middle)[1]
+        span = box_scanline_span(r, box_centre, half, centre, y, size, scale, middle)
         if span is None:
             continue
         for column in range(max(span[0] - 1, 0), min(span[1] + 1, size[1] - 1) + 1):
-            depth = ray_entry(r, pixel_centre(column, row, size, scale)[0], y, box_centre, half, centre)
+            depth = ray_entry(r, pixel_centre(column, row, size, scale, middle)[0], y, box_centre, half, centre)
             if depth is not None:
                 found.append((row, column, depth))
     return found

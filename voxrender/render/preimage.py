@@ -40,8 +40,11 @@ def preimage_view(view, supersample):
         n = int(np.ceil(extent * supersample)) + 2
         return n + (n - supersample * final - supersample + 1) % 2
 
+    cx, cy = view.centre                                   # the picture's centre, in the pre-image: Rz(-gamma)
+    centre = (float(np.cos(g) * cx + np.sin(g) * cy), float(-np.sin(g) * cx + np.cos(g) * cy))
     return View(view.alpha, view.beta, 0.0, (side(s * width + c * height, along_y),
-                                             side(c * width + s * height, along_x)), view.scale * supersample)
+                                             side(c * width + s * height, along_x)), view.scale * supersample,
+                centre)
 
 
 def turn_items(owner, boxes, shape, view, pre_view):
