@@ -243,7 +243,7 @@ class View:
 
         >>> v = View(size=(100, 100)).fitted((10, 10, 10), ((0, 9), (0, 9), (0, 4)))
         >>> round(v.scale, 3), [round(c, 3) for c in v.centre]
-        (9.524, [-2.5, 0.0])
+        (9.091, [-2.5, 0.0])
         """
         if self.scale is not None:
             return self
