@@ -8,7 +8,6 @@ import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
 from click.testing import CliRunner
 
 from voxrender.cli import main
@@ -18,7 +17,7 @@ GOLDEN = Path(__file__).resolve().parent / "golden"
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 SHELL = ["render", "{samples}/shell", "--threshold", "500", "--alpha", "100", "--beta", "20", "--size", "96"]
 CASES = {
-    "demo": ["demo", "--samples-folder", "{samples}"],
+    "demo": ["demo", "--headsq", str(Path(__file__).resolve().parents[1] / "samples" / "headsq"), "--size", "96"],
     **{f"shell-{method}": SHELL + ["--method", method] for method in sorted(METHODS)},
     "shell-gamma": SHELL + ["--gamma", "30"],
     "shell-cutaway": SHELL + ["--cut-depth", "0", "--light", "1,-1,-2"],
@@ -35,13 +34,6 @@ def render_case(name, output, samples, data=DATA):
         CliRunner().invoke(main, ["samples", str(samples)])
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 0, (args, result.output)
-
-
-def compare(picture, golden):
-    """``(largest difference in grey levels, share of pixels that differ)`` of two pictures of one size."""
-    difference = np.abs(np.asarray(picture, int) - np.asarray(golden, int))
-    differing = difference.reshape(difference.shape[0], difference.shape[1], -1).max(axis=2) > 0
-    return int(difference.max()), float(differing.mean())
 
 
 if __name__ == "__main__":

@@ -127,11 +127,11 @@ def test_vpn_and_view_options(tmp_path, cube_folder):
     assert np.array_equal(np.load(a), np.load(b))
 
 
-def test_demo_writes_the_samples(tmp_path):
-    result = run("demo", "-o", tmp_path / "demo.png", "--samples-folder", tmp_path / "samples")
+def test_demo_renders_the_quarter_head(tmp_path):
+    result = run("demo", "-o", tmp_path / "demo.png", "--headsq", ROOT / "samples" / "headsq", "--size", 64)
     assert result.exit_code == 0, result.output
-    assert {p.name for p in (tmp_path / "samples").iterdir()} == {"sphere", "torus", "shell", "staircase", "cylinder"}
-    assert iio.imread(tmp_path / "demo.png").shape == (256, 256, 3)     # its picture: tests/test_golden.py
+    assert iio.imread(tmp_path / "demo.png").shape[:2] == (2 * (64 + 16 + 4) + 4, 4 * (64 + 4) + 4)  # 2 x 4 sheet
+    assert_bad_input(run("demo", "-o", tmp_path / "d.png", "--headsq", tmp_path), "--headsq", "quarter head")
 
 
 def test_samples_render_at_their_threshold(tmp_path):
@@ -375,3 +375,19 @@ def test_bad_research_files_end_in_one_line(tmp_path):
     for name, words in (("cut.nii.gz", ["cut.nii.gz"]), ("magic.nrrd", ["cannot read"]), ("gone.nhdr", ["gone"])):
         assert_bad_input(run("render", tmp_path / name, "-o", tmp_path / "o.png"), *words)
         assert not (tmp_path / "o.png").exists()
+
+
+def test_compare_command(tmp_path):
+    golden = ROOT / "tests" / "golden" / "shell-ftb.png"
+    picture = iio.imread(golden).copy()
+    iio.imwrite(tmp_path / "same.png", picture)
+    result = run("compare", tmp_path / "same.png", golden)
+    assert result.exit_code == 0 and "same" in result.output
+    picture[:5, :5] = 255
+    iio.imwrite(tmp_path / "off.png", picture)
+    result = run("compare", tmp_path / "off.png", golden)
+    assert result.exit_code == 1 and "DIFFERENT" in result.output
+    assert run("compare", tmp_path / "off.png", golden, "--tolerance", 255).exit_code == 0
+    assert_bad_input(run("compare", tmp_path / "nope.png", golden), "cannot read")
+    iio.imwrite(tmp_path / "small.png", picture[:10])
+    assert_bad_input(run("compare", tmp_path / "small.png", golden), "differ in size")

@@ -16,7 +16,8 @@ from pathlib import Path
 import click
 import numpy as np
 
-from . import __version__, batch, io, lines, octree, orient, output, parse, prep, samples, segments
+from . import __version__, batch, compare, io, lines, octree, orient, output, parse, prep, samples, segments
+from .sheet import sheet
 from .errors import InputError
 from .picture import Outputs, RenderOptions, about, picture, write_outputs
 from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
@@ -453,29 +454,54 @@ def samples_command(folder, names):
         click.echo(f"{path}: {len(values)} slices, and {name}.nii.gz, {name}.nrrd beside it")
 
 
-# The demo: the noisy shell seen from the front, a little from the left and above, so both eye holes show.
-DEMO_SAMPLE = "shell"
-DEMO_VIEW = (100.0, 20.0, 0.0)
-DEMO_OPTIONS = RenderOptions(size=(256, 256))
+# The demo: the VTK quarter head shipped in samples/headsq (its README and licence are beside it).
+DEMO_READ = ReadOptions(raw=io.RawLayout(64, 64, np.dtype("<u2")), spacing=(3.2, 3.2, 1.5), orientation="LPI")
+DEMO_TISSUES = (("skin", 500), ("bone", 1150))
+DEMO_VIEWS = (("anterior", PRESETS["anterior"]), ("left", PRESETS["left"]), ("posterior", PRESETS["posterior"]),
+              ("oblique", (65.0, -35.0, 0.0)))
 
 
 @main.command("demo")
 @click.option("-o", "--output", "output_path", default="demo.png", show_default=True,
               type=click.Path(path_type=Path))
-@click.option("--samples-folder", default="samples", show_default=True, type=click.Path(path_type=Path))
-def demo_command(output_path, samples_folder):
-    """Write the built-in samples (if absent) and render the skull-like shell to OUTPUT."""
+@click.option("--headsq", default="samples/headsq", show_default=True, type=click.Path(path_type=Path),
+              help="The quarter-resolution head's slices (shipped in the repository's samples/).")
+@click.option("--size", default=192, show_default=True, type=click.IntRange(32, 2048), help="Pixels per picture.")
+def demo_command(output_path, headsq, size):
+    """Render a sheet of a real CT, skin and bone from four views, to OUTPUT."""
     output.check_writable(output_path)
-    folder = samples_folder / DEMO_SAMPLE
-    if not folder.is_dir():
-        for name, make in samples.SAMPLES.items():
-            output.write_slices(make(), samples_folder / name)
-    loaded = load_segments(folder, prepare=PrepOptions(threshold=samples.SAMPLE_THRESHOLD))
-    result = picture(loaded.segments, DEMO_OPTIONS.view(*DEMO_VIEW), DEMO_OPTIONS, progress)
-    write_outputs(result, Outputs(output_path))
-    image = result.image
-    click.echo(f"{output_path}: {folder} rendered with {image.method} at alpha={image.view.alpha:g} "
-               f"beta={image.view.beta:g} in {image.seconds:.2f} s")
+    if not (headsq / "quarter.1").is_file():
+        raise InputError(f"{headsq} does not hold the quarter head (quarter.1 ... quarter.93); run the demo from the "
+                         "repository's root or give --headsq", parameter="headsq")
+    options = RenderOptions(size=(size, size))
+    started = time.perf_counter()
+    rows, captions = [], []
+    for tissue, threshold in DEMO_TISSUES:
+        loaded = load_segments(headsq, DEMO_READ, PrepOptions(threshold=threshold), progress)
+        pictures = [picture(loaded.segments, options.view(*angles), options, normals=loaded.normals()).rgb
+                    for _, angles in DEMO_VIEWS]
+        rows.append(pictures)
+        captions.append([f"{tissue}, {name}" for name, _ in DEMO_VIEWS])
+    output.write_png(output_path, sheet(rows, captions))
+    click.echo(f"{output_path}: {headsq} (CT, 64 x 64 x 93), skin and bone from {len(DEMO_VIEWS)} views, "
+               f"in {time.perf_counter() - started:.1f} s")
+
+
+@main.command("compare")
+@click.argument("picture", type=click.Path(path_type=Path))
+@click.argument("golden", type=click.Path(path_type=Path))
+@click.option("--tolerance", default=1, show_default=True, type=click.IntRange(0, 65535),
+              help="Grey levels a pixel may be off and still count as equal.")
+@click.option("--share", default=0.001, show_default=True, type=click.FloatRange(0, 1),
+              help="Share of pixels that may be off by more than the tolerance.")
+def compare_command(picture, golden, tolerance, share):
+    """Compare PICTURE with GOLDEN (golden-image tests): exit 0 when they match, 1 when they do not."""
+    result = compare.compare(compare.read_picture(picture), compare.read_picture(golden), tolerance, share)
+    click.echo(f"{picture} against {golden}: mean difference {result['mean_difference']:.3f}, largest "
+               f"{result['largest']}, {100 * result['share_off']:.3f} % of pixels off by more than {tolerance} "
+               f"(allowed {100 * share:g} %): {'same' if result['same'] else 'DIFFERENT'}")
+    if not result["same"]:
+        sys.exit(1)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,0 +1,40 @@
+"""Sheets: pictures laid out in a grid with captions, to compare views, methods or studies at a glance."""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["sheet"]
+
+
+def sheet(rows, captions=None, gap=4, caption_height=16, background=(0, 0, 0), colour=(230, 230, 230)):
+    """One RGB picture of ``rows`` of RGB pictures (each row a list), with a caption under each picture.
+
+    Pictures of different sizes are placed at the top left of equal cells.
+
+    >>> picture = np.full((8, 10, 3), 200, np.uint8)
+    >>> sheet([[picture, picture]], [["a", "b"]], caption_height=0).shape
+    (16, 32, 3)
+    """
+    from PIL import Image, ImageDraw
+
+    height = max(p.shape[0] for row in rows for p in row)
+    width = max(p.shape[1] for row in rows for p in row)
+    cell_h, cell_w = height + caption_height + gap, width + gap
+    columns = max(len(row) for row in rows)
+    out = np.empty((len(rows) * cell_h + gap, columns * cell_w + gap, 3), np.uint8)
+    out[:] = background
+    for r, row in enumerate(rows):
+        for c, picture in enumerate(row):
+            top, left = gap + r * cell_h, gap + c * cell_w
+            picture = np.asarray(picture)
+            out[top:top + picture.shape[0], left:left + picture.shape[1]] = (
+                picture if picture.ndim == 3 else picture[..., None])[..., :3]
+    if captions and caption_height:
+        image = Image.fromarray(out)
+        draw = ImageDraw.Draw(image)
+        for r, row in enumerate(captions):
+            for c, text in enumerate(row):
+                draw.text((gap + c * cell_w + 2, gap + r * cell_h + height + 2), str(text), fill=tuple(colour))
+        out = np.asarray(image)
+    return out
