@@ -53,3 +53,15 @@ def test_unknown_mode_and_zero_light():
         shade.shade(np.zeros((2, 2)), "phong")
     with pytest.raises(InputError):
         shade.gradient_shading(np.zeros((2, 2)), light=(0, 0, 0))
+
+
+def test_ambient_occlusion_darkens_pits_not_planes():
+    plane = np.tile(np.linspace(0, 5, 32, dtype=np.float32), (32, 1))        # a tilted plane: nothing occludes
+    assert shade.ambient_occlusion(plane).max() < 0.05
+    pit = np.zeros((32, 32), np.float32)
+    pit[12:20, 12:20] = 6.0
+    occlusion = shade.ambient_occlusion(pit)
+    assert occlusion[16, 16] > 0.15 and occlusion[2, 2] == 0
+    lit = shade.shade(pit, "depth-gradient", light=(0, 0, -1))
+    darker = shade.shade(pit, "depth-gradient", light=(0, 0, -1), occlusion=occlusion)
+    assert darker[16, 16, 0] < lit[16, 16, 0] and darker[2, 2, 0] == lit[2, 2, 0]

@@ -94,7 +94,8 @@ def _render_options(options):
     method_options = {"connectivity": options["connectivity"]} if options["connectivity"] else {}
     return RenderOptions(options["method"], method_options, clip if clip.active else None, options["fit"],
                          parse.size(options["size"]), options["scale"], options["supersample"], options["shading"],
-                         parse.vector(options["light"], "light"), background=parse.colour(options["background"]))
+                         parse.vector(options["light"], "light"), background=parse.colour(options["background"]),
+                         ao=options["ao"], orientation_marks=options["orientation_marks"])
 
 
 def _check_vxs_options(path, options):
@@ -175,6 +176,9 @@ def _render_options_decorator(command):
         click.option("--light", default=",".join(f"{v:g}" for v in HEADLIGHT), show_default=True, metavar="X,Y,Z",
                      help="Direction toward the light in image space (X right, Y down, Z away)."),
         click.option("--background", default="black", show_default=True, metavar="GREY|R,G,B"),
+        click.option("--ao", is_flag=True, help="Darken creases and pits (screen-space ambient occlusion)."),
+        click.option("--orientation-marks", is_flag=True,
+                     help="Write the patient directions (L/R, A/P, S/I) at the picture's edges."),
         click.option("--depth-out", type=click.Path(path_type=Path), metavar="FILE.npy",
                      help="Save the depth image (float32, +inf background); in a batch, a pattern like --pattern."),
         click.option("--depth-png", type=click.Path(path_type=Path), metavar="FILE.png",

@@ -52,6 +52,10 @@ class RenderOptions:
     colour : 3 floats in [0, 1]
         Colour of a fully lit surface.
     background : 3 ints in [0, 255]
+    ao : bool
+        Darken creases and pits by screen-space ambient occlusion.
+    orientation_marks : bool
+        Write the patient directions (L/R, A/P, S/I) at the picture's edges.
     """
 
     method: str = DEFAULT_METHOD
@@ -65,6 +69,8 @@ class RenderOptions:
     light: tuple = HEADLIGHT
     colour: tuple = (1.0, 1.0, 1.0)
     background: tuple = (0, 0, 0)
+    ao: bool = False
+    orientation_marks: bool = False
 
     def __post_init__(self):
         record = method_record(self.method)
@@ -154,8 +160,13 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
                 segments.normals = surface_normals(segments.to_mask())
             normals = segments.normals
         normal_image = at_hits(image.depth, image.view, segments.shape, normals)
+    occlusion = shade.ambient_occlusion(image.depth, image.view.scale) if options.ao else None
     rgb = shade.shade(image.depth, options.shading, image.view.scale, options.light, options.colour,
-                      options.background, normal_image)
+                      options.background, normal_image, occlusion)
+    if options.orientation_marks:
+        from .marks import draw_marks
+
+        rgb = draw_marks(rgb, image.view)
     return Picture(rgb, image, {"render": image.seconds, "shade": time.perf_counter() - started}, normal_image)
 
 
