@@ -185,3 +185,13 @@ def test_a_turntable_keeps_one_scale_and_centres_every_frame(tmp_path, stacks):
         assert abs((columns.max() + columns.min()) / 2 - 19.5) <= 1.5      # each frame centred
     # one scale for all: the box's height (along z, up in the picture) is the same in every frame
     assert len({height for height, _ in spans}) == 1
+
+
+def test_index_page_and_sheet(tmp_path, stacks):
+    work = items([stacks / "ball.npy", stacks / "broken.npy"], batch.parse_views(["anterior", "left"]), size=(24, 24))
+    batch.run_batch(work, tmp_path, jobs=1, make_sheet=True)
+    page = (tmp_path / "index.html").read_text()
+    assert page.count("<tr>") == 1 + 4 and page.count('<img src="ball/') == 2
+    assert "broken.npy" in page or "cannot read" in page                # the failed rows keep their error
+    sheet = iio.imread(tmp_path / "sheet.png")
+    assert sheet.shape == (2 * (24 + 16 + 4) + 4, 2 * (24 + 4) + 4, 3)   # a row per input, a column per view

@@ -391,3 +391,15 @@ def test_compare_command(tmp_path):
     assert_bad_input(run("compare", tmp_path / "nope.png", golden), "cannot read")
     iio.imwrite(tmp_path / "small.png", picture[:10])
     assert_bad_input(run("compare", tmp_path / "small.png", golden), "differ in size")
+
+
+def test_sheet_command(tmp_path, cube_folder):
+    result = run("sheet", cube_folder, "--threshold", 500, "--view", "anterior", "--view", "left", "--methods",
+                 "ftb,btf,octree-ftb", "--size", 32, "-o", tmp_path / "s.png")
+    assert result.exit_code == 0, result.output
+    assert iio.imread(tmp_path / "s.png").shape == (3 * (32 + 16 + 4) + 4, 2 * (32 + 4) + 4, 3)
+    assert_bad_input(run("sheet", cube_folder, cube_folder, "--methods", "ftb", "-o", tmp_path / "t.png"),
+                     "one input")
+    assert_bad_input(run("sheet", cube_folder, "--depth-out", tmp_path / "d.npy", "-o", tmp_path / "t.png"),
+                     "--depth-out")
+    assert not (tmp_path / "t.png").exists()

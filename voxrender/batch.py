@@ -415,7 +415,8 @@ def executor(jobs, scheduler=None):
 
 # ------------------------------------------------------------------ the batch
 
-def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animations=(), fps=12, progress=None):
+def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animations=(), fps=12, progress=None,
+              make_sheet=False):
     """Run a batch; return the summary rows (also written to ``out_dir/summary.csv``).
 
     Parameters
@@ -433,6 +434,11 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
         ``"gif"`` and/or ``"mp4"``: every item's views as one animation ``out_dir/{name}.gif``.
     progress : callable, optional
         ``progress(length)`` returning an object with ``update(n)`` and ``close()`` (a progress bar).
+    make_sheet : bool
+        Also lay every item's pictures out in ``out_dir/sheet.png``: a row per input, a column per view.
+
+    Besides the pictures it writes ``summary.csv`` and ``index.html`` (thumbnails linked to the pictures, with
+    each row's numbers and errors).
     """
     out_dir = Path(out_dir)
     _check_patterns(items, out_dir)
@@ -489,6 +495,9 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
         for item in items:
             _animate(item, out_dir, kind, fps, ordered)
     _write_summary(out_dir / "summary.csv", ordered)
+    _write_index(out_dir / "index.html", ordered, out_dir)
+    if make_sheet:
+        _write_sheet(out_dir / "sheet.png", items, ordered)
     return ordered
 
 
@@ -534,6 +543,50 @@ def _animate(item, out_dir, kind, fps, rows):
                 iio.imwrite(tmp, pictures, extension=".mp4", fps=fps, codec="libx264", macro_block_size=1)
     except (ImportError, OSError, RuntimeError, ValueError) as exc:
         raise InputError(f"cannot write {target}: {exc} (MP4 needs pip install 'voxrender[video]')") from None
+
+
+def _write_index(path, rows, out_dir):
+    """A static page: one line per picture, its thumbnail linked to it, with its numbers and error."""
+    import html
+
+    cells = ["<tr><th>picture</th><th>input</th><th>view</th><th>method</th><th>status</th><th>render s</th>"
+             "<th>total s</th><th>error</th></tr>"]
+    for row in rows:
+        picture = Path(row["output"])
+        link = html.escape(str(picture.relative_to(out_dir)) if picture.is_relative_to(out_dir) else str(picture))
+        shown = (f'<a href="{link}"><img src="{link}" width="160" loading="lazy"></a>'
+                 if row["status"] in ("ok", "done earlier") else "")
+        numbers = [f"{row[key]:.3f}" if isinstance(row.get(key), float) else "" for key in ("render_s", "total_s")]
+        cells.append("<tr>" + "".join(f"<td>{value}</td>" for value in (
+            shown, html.escape(row["name"]), html.escape(row["view"]), html.escape(row["method"]),
+            html.escape(row["status"]), *numbers, html.escape(row.get("error", "")))) + "</tr>")
+    page = ("<!doctype html><meta charset=\"utf-8\"><title>voxrender batch</title>"
+            "<style>body{font-family:sans-serif} td,th{padding:4px;border-bottom:1px solid #ccc}</style>"
+            f"<h1>voxrender batch: {len(rows)} pictures</h1><table>{''.join(cells)}</table>\n")
+    with output.atomic_output(path) as tmp:
+        tmp.write_text(page)
+
+
+def _write_sheet(path, items, rows):
+    """Every item's pictures in one sheet: a row per input, a column per view (missing pictures left black)."""
+    import imageio.v3 as iio
+
+    from .sheet import sheet
+
+    by_key = {(row["input"], row["view"]): row for row in rows}
+    pictures, captions = [], []
+    for item in items:
+        row_pictures, row_captions = [], []
+        for view in item.views:
+            row = by_key[(item.input, view.label)]
+            if row["status"] in ("ok", "done earlier"):
+                row_pictures.append(iio.imread(row["output"]))
+            else:
+                row_pictures.append(np.zeros((*item.options.size, 3), np.uint8))
+            row_captions.append(f"{item.name}, {view.label}")
+        pictures.append(row_pictures)
+        captions.append(row_captions)
+    output.write_png(path, sheet(pictures, captions))
 
 
 def _write_summary(path, rows):

@@ -11,13 +11,14 @@ import os
 import sys
 import time
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import click
 import numpy as np
 
 from . import __version__, batch, compare, io, lines, octree, orient, output, parse, prep, samples, segments
-from .sheet import sheet
+from .sheet import render_sheet, sheet
 from .errors import InputError
 from .picture import Outputs, RenderOptions, about, picture, write_outputs
 from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
@@ -372,6 +373,7 @@ class _BatchBar:
 @click.option("--pattern", default="{name}/{view}.png", show_default=True,
               help="Output names under --out: {name}, {view}, {method}, {index}.")
 @_render_options_decorator
+@click.option("--sheet", "make_sheet", is_flag=True, help="Also lay all pictures out in OUT/sheet.png.")
 @click.option("--gif", is_flag=True, help="Also write each input's views as an animated GIF.")
 @click.option("--mp4", is_flag=True, help="Also write each input's views as an MP4 (extra 'video').")
 @click.option("--fps", default=12, show_default=True, type=click.IntRange(1, 120))
@@ -379,8 +381,8 @@ class _BatchBar:
 @click.option("--scheduler", metavar="ADDRESS|local", help="Run on a Dask cluster ('local' starts one here).")
 @click.option("--cache", type=click.Path(path_type=Path), help="Cache of encoded objects (default OUT/.voxrender-cache).")
 def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pattern, depth_out, depth_png,
-                  stats_json, normals_out, normals_png, gif, mp4, fps, jobs, scheduler, cache, **options):
-    """Render many inputs from many views: pictures, an optional animation, and summary.csv.
+                  stats_json, normals_out, normals_png, make_sheet, gif, mp4, fps, jobs, scheduler, cache, **options):
+    """Render many inputs from many views: pictures, summary.csv, index.html, and optionally a sheet or animation.
 
     Each input is encoded once (and cached); a failing input is reported and the others go on;
     a re-run skips the pictures already made.  The render options are those of 'voxrender render';
@@ -396,7 +398,7 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
                              patterns)
     animations = [kind for kind, wanted in (("gif", gif), ("mp4", mp4)) if wanted]
     started = time.perf_counter()
-    summary = batch.run_batch(items, out_dir, jobs, scheduler, cache, animations, fps, _BatchBar)
+    summary = batch.run_batch(items, out_dir, jobs, scheduler, cache, animations, fps, _BatchBar, make_sheet)
     made = sum(r["status"] == "ok" for r in summary)
     earlier = sum(r["status"] == "done earlier" for r in summary)
     failed = {r["input"]: r["error"] for r in summary if r["status"] == "failed"}
@@ -406,6 +408,41 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
         click.echo(f"failed: {path}: {error}", err=True)
     if failed:
         sys.exit(2)
+
+
+@main.command("sheet")
+@click.argument("inputs", nargs=-1, required=True, type=click.Path(path_type=Path), metavar="INPUT...")
+@_read_options_decorator
+@_prep_options_decorator
+@click.option("-o", "--output", "output_path", required=True, type=click.Path(path_type=Path), help="PNG to write.")
+@click.option("--view", "views", multiple=True, type=click.Choice(list(PRESETS)), help="A named view (repeatable).")
+@click.option("--angles", multiple=True, metavar="A,B,G", help="alpha,beta,gamma in degrees (repeatable).")
+@click.option("--methods", metavar="M1,M2,...", help="Rows of methods (one input): compare the algorithms.")
+@_render_options_decorator
+def sheet_command(inputs, output_path, views, angles, methods, depth_out, depth_png, stats_json, normals_out,
+                  normals_png, **options):
+    """Lay out pictures in a grid: one input's views x methods (--methods), or several inputs' views."""
+    given = [flag for flag, value in (("--depth-out", depth_out), ("--depth-png", depth_png),
+                                      ("--stats-json", stats_json), ("--normals-out", normals_out),
+                                      ("--normals-png", normals_png)) if value]
+    if given:
+        raise InputError(f"a sheet is one picture: {', '.join(given)} cannot apply; use render or batch")
+    output.check_writable(output_path)
+    chosen = batch.parse_views(views, [parse.vector(a, "angles") for a in angles])
+    columns = [(v.label, (v.alpha, v.beta, v.gamma)) for v in chosen]
+    render_options = _render_options(options)
+    read, prepare = _read_options(options), _prep_options(options)
+    if methods:
+        if len(inputs) > 1:
+            raise InputError("give one input to compare methods, or several inputs without --methods")
+        loaded = load_segments(inputs[0], read, prepare, progress)
+        rows = [(name, loaded, replace(render_options, method=name, method_options={}))
+                for name in (m.strip() for m in methods.split(",")) if name]
+    else:
+        rows = [(path.stem or path.name, load_segments(path, read, prepare, progress), render_options)
+                for path in inputs]
+    output.write_png(output_path, render_sheet(rows, columns, progress))
+    click.echo(f"{output_path}: {len(rows)} rows x {len(columns)} views")
 
 
 @main.command("lines")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["sheet"]
+__all__ = ["sheet", "render_sheet"]
 
 
 def sheet(rows, captions=None, gap=4, caption_height=16, background=(0, 0, 0), colour=(230, 230, 230)):
@@ -38,3 +38,34 @@ def sheet(rows, captions=None, gap=4, caption_height=16, background=(0, 0, 0), c
                 draw.text((gap + c * cell_w + 2, gap + r * cell_h + height + 2), str(text), fill=tuple(colour))
         out = np.asarray(image)
     return out
+
+
+def render_sheet(rows, views, progress=None):
+    """A sheet of pictures: one row per ``(label, encoded, options)``, one column per ``(label, (alpha, beta,
+    gamma))`` view; captions "row label, view label".  ``encoded`` is a :class:`~voxrender.pipeline.Encoded`.
+
+    A row of several views frames them with one scale, as a batch does.
+    """
+    from dataclasses import replace
+
+    from .picture import picture
+
+    pictures, captions = [], []
+    for row_label, encoded, options in rows:
+        chosen = [options.view(*angles) for _, angles in views]
+        if options.scale is None and options.fit == "object":
+            box = encoded.segments.bounding_box()
+            framed = [v.fitted(encoded.segments.shape, box) for v in chosen]
+            common = min(v.scale for v in framed)
+            chosen = [replace(v, scale=common, centre=f.centre) for v, f in zip(chosen, framed)]
+        normals = encoded.normals() if options.shading == "gradient" else None
+        tree = encoded.octree() if _uses_octree(options.method) else None
+        pictures.append([picture(encoded.segments, v, options, progress, tree, normals).rgb for v in chosen])
+        captions.append([f"{row_label}, {label}" for label, _ in views])
+    return sheet(pictures, captions)
+
+
+def _uses_octree(method):
+    from .render import method_record
+
+    return method_record(method).octree
