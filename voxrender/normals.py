@@ -101,8 +101,7 @@ class SurfaceNormals:
         nz, ny, nx = self.shape
         base = np.floor(points).astype(np.int64)
         fraction = points - base
-        total = np.zeros((len(points), 3))
-        decoded = octahedral_decode(self.packed) if len(self.index) else np.zeros((0, 3), np.float32)
+        total = np.zeros((len(points), 3), np.float32)
         for corner in itertools.product((0, 1), repeat=3):
             voxel = base + corner
             weight = np.prod(np.where(corner, fraction, 1 - fraction), axis=1)
@@ -112,7 +111,7 @@ class SurfaceNormals:
             slot = np.minimum(slot, max(len(self.index) - 1, 0))
             found = inside & (len(self.index) > 0)
             found[found] = self.index[slot[found]] == linear[found]
-            total[found] += weight[found, None] * decoded[slot[found]]
+            total[found] += weight[found, None].astype(np.float32) * octahedral_decode(self.packed[slot[found]])
         length = np.linalg.norm(total, axis=1, keepdims=True)
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.where(length > 1e-12, total / length, np.nan)

@@ -218,11 +218,10 @@ def shade(depth, mode="gradient", scale=1.0, light=HEADLIGHT, colour=(1.0, 1.0, 
     [[[255, 255, 255], [0, 0, 255]]]
     """
     if mode == "gradient":
-        from_depth = surface_normals(depth, scale, 0.7)
-        if normals is None:
-            normals = from_depth
-        else:
-            normals = np.where(np.isfinite(normals).all(axis=2, keepdims=True), normals, from_depth)
+        missing = np.isfinite(depth) if normals is None else np.isfinite(depth) & ~np.isfinite(normals).all(axis=2)
+        if missing.any():                                   # the depth gradient where no normal is known
+            from_depth = surface_normals(depth, scale, 0.7)
+            normals = from_depth if normals is None else np.where(missing[..., None], from_depth, normals)
         brightness = blinn_phong(normals, depth, light)
     elif mode == "depth-gradient":
         brightness = gradient_shading(depth, scale, light)
