@@ -33,7 +33,7 @@ class Mutant:
 
 MUTANTS = [
     Mutant("pixel-centre offset", "voxrender/view.py",
-           "return (columns + 0.5 - width / 2) / self.scale", "return (columns + 0.4 - width / 2) / self.scale"),
+           "return ((columns + 0.5 - width / 2) / self.scale", "return ((columns + 0.4 - width / 2) / self.scale"),
     Mutant("span edge one pixel short", "voxrender/render/geometry.py",
            "last = np.minimum(np.floor(right + EPS).astype(np.int64), width - 1)",
            "last = np.minimum(np.floor(right + EPS).astype(np.int64) - 1, width - 1)"),
@@ -65,6 +65,10 @@ MUTANTS = [
     Mutant("cut plane keeps the near side", "voxrender/render/clip.py",
            "keep &= view.to_image(x, y, z, mask.shape)[2] >= self.cut_depth - 1e-9",
            "keep &= view.to_image(x, y, z, mask.shape)[2] <= self.cut_depth - 1e-9"),
+    Mutant("normals point inward", "voxrender/normals.py",
+           "outward = -gradient[keep] / length[keep, None]", "outward = gradient[keep] / length[keep, None]"),
+    Mutant("framing ignores the object's centre", "voxrender/view.py",
+           "centre=((x0 + x1) / 2, (y0 + y1) / 2))", "centre=(0.0, 0.0))"),
     Mutant("ray-box entry ignores the box's y extent", "voxrender/render/geometry.py",
            "for k, half in enumerate((half_x, half_y, half_z)):", "for k, half in enumerate((half_x, 0.5, half_z)):"),
 ]
