@@ -38,12 +38,7 @@ def write_series(folder, volume, spacing=(0.5, 0.6, 2.0), series_uid=None, slope
             ds.ImageOrientationPatient = [float(v) for v in (*direction[:, 0], *direction[:, 1])]
         ds.PixelSpacing = [spacing[1], spacing[0]]
         ds.SliceThickness = spacing[2]
-        ds.Rows, ds.Columns = volume.shape[1:]
-        ds.SamplesPerPixel = 1
-        ds.PhotometricInterpretation = "MONOCHROME2"
-        ds.BitsAllocated = ds.BitsStored = 16
-        ds.HighBit = 15
-        ds.PixelRepresentation = 1
+        _signed_16_bit_pixels(ds, volume.shape[1:])
         ds.RescaleSlope = slope
         ds.RescaleIntercept = intercept
         ds.PixelData = np.ascontiguousarray(volume[z], dtype=np.int16).tobytes()
@@ -71,12 +66,7 @@ def write_enhanced(path, volume, spacing=(0.5, 0.6, 2.0), slope=1, intercept=-10
     ds.SeriesInstanceUID = series_uid or generate_uid()
     ds.StudyInstanceUID = "1.2.3"
     ds.NumberOfFrames = len(volume)
-    ds.Rows, ds.Columns = volume.shape[1:]
-    ds.SamplesPerPixel = 1
-    ds.PhotometricInterpretation = "MONOCHROME2"
-    ds.BitsAllocated = ds.BitsStored = 16
-    ds.HighBit = 15
-    ds.PixelRepresentation = 1
+    _signed_16_bit_pixels(ds, volume.shape[1:])
     shared = Dataset()
     measures, plane = Dataset(), Dataset()
     measures.PixelSpacing = [spacing[1], spacing[0]]
@@ -98,3 +88,13 @@ def write_enhanced(path, volume, spacing=(0.5, 0.6, 2.0), slope=1, intercept=-10
     ds.PixelData = np.ascontiguousarray(volume[order], dtype=np.int16).tobytes()
     ds.save_as(path, enforce_file_format=True)
     return path
+
+
+def _signed_16_bit_pixels(ds, rows_columns):
+    """The image pixel module of signed 16-bit greyscale slices of ``rows_columns``."""
+    ds.Rows, ds.Columns = rows_columns
+    ds.SamplesPerPixel = 1
+    ds.PhotometricInterpretation = "MONOCHROME2"
+    ds.BitsAllocated = ds.BitsStored = 16
+    ds.HighBit = 15
+    ds.PixelRepresentation = 1
