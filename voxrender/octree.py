@@ -22,7 +22,6 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
-from scipy.sparse import csr_matrix
 
 from .errors import InputError
 from .output import atomic_output
@@ -150,6 +149,8 @@ class RegionOctree:
         return self._white_rows(BLACK)
 
     def _white_rows(self, target_color):
+        from scipy.sparse import csr_matrix   # imported here: only octree-ftb needs it, and it is slow to load
+
         white = self.color == WHITE
         rows = len(self.white_leaves) + 1
         number = np.full(len(self.color), -1, np.int64)       # node -> its number among the white leaves

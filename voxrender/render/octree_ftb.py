@@ -32,8 +32,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import breadth_first_order
 
 from .. import octree
 from ..view import vpn_from_angles
@@ -79,6 +77,9 @@ def seen_from_the_front(tree, axes):
     >>> int(seen.sum()), int(faces[1 + 0]), bool(lit[0])   # seven white voxels; all 3 faces of label 0 open
     (7, 7, True)
     """
+    from scipy.sparse import csr_matrix                     # imported here: slow to load, and only needed here
+    from scipy.sparse.csgraph import breadth_first_order
+
     behind = _behind(axes)
     white = tree.white_leaves                               # the search runs on their numbers 0..len - 1
     sources = np.searchsorted(white, _white_leaves_in_front(tree, axes))
