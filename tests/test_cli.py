@@ -43,10 +43,10 @@ def test_render_writes_png_depth_and_stats(tmp_path, cube_folder):
                  "--scale", 2, "-o", out, "--depth-out", depth, "--stats-json", stats, "--depth-png", depth_png)
     assert result.exit_code == 0, result.output
     picture = iio.imread(out)
-    assert picture.shape == (48, 64, 3) and picture.dtype == np.uint8
+    assert picture.shape == (48, 64) and picture.dtype == np.uint8        # no colour: 8-bit grey
     depths = np.load(depth)
     assert depths.dtype == np.float32 and depths.shape == (48, 64) and np.isinf(depths).any()
-    assert np.array_equal(np.isfinite(depths), picture.any(axis=2))
+    assert np.array_equal(np.isfinite(depths), picture > 0)
     report = json.loads(stats.read_text())
     assert report["method"] == "ftb"  # the default
     assert set(report["seconds"]) == {"load", "prepare", "render", "shade", "write", "total"}
@@ -298,15 +298,15 @@ def test_issue_commands_on_real_data(tmp_path):
     skull, face, head = (iio.imread(tmp_path / name) for name in ("skull.png", "f.png", "head.png"))
     assert np.array_equal(skull, iio.imread(tmp_path / "skull2.png"))     # the .vxs renders the same picture
     for picture in (skull, face, head):
-        covered = picture.any(axis=2)
+        covered = picture > 0
         rows, columns = np.nonzero(covered)
-        assert picture.shape == (128, 128, 3) and covered.sum() > 400
+        assert picture.shape == (128, 128) and covered.sum() > 400
         # framed as the view sees it: the object's extent is centred and fills the picture across one side
         extent = (rows.max() - rows.min() + 1, columns.max() - columns.min() + 1)
         assert max(extent) >= 0.85 * 128
         assert abs((rows.max() + rows.min()) / 2 - 63.5) <= 0.1 * 128 and abs((columns.max() + columns.min()) / 2 - 63.5) <= 0.1 * 128
         # and shaded: many grey levels, not a silhouette
-        assert len(np.unique(picture[covered][:, 0])) > 50
+        assert len(np.unique(picture[covered])) > 50
 
 
 # ------------------------------------------------------------------ research formats and a corpus no one here wrote
@@ -397,7 +397,7 @@ def test_sheet_command(tmp_path, cube_folder):
     result = run("sheet", cube_folder, "--threshold", 500, "--view", "anterior", "--view", "left", "--methods",
                  "ftb,btf,octree-ftb", "--size", 32, "-o", tmp_path / "s.png")
     assert result.exit_code == 0, result.output
-    assert iio.imread(tmp_path / "s.png").shape == (3 * (32 + 16 + 4) + 4, 2 * (32 + 4) + 4, 3)
+    assert iio.imread(tmp_path / "s.png").shape[:2] == (3 * (32 + 16 + 4) + 4, 2 * (32 + 4) + 4)
     assert_bad_input(run("sheet", cube_folder, cube_folder, "--methods", "ftb", "-o", tmp_path / "t.png"),
                      "one input")
     assert_bad_input(run("sheet", cube_folder, "--depth-out", tmp_path / "d.npy", "-o", tmp_path / "t.png"),
