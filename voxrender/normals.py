@@ -99,22 +99,28 @@ class SurfaceNormals:
         around each; NaN where none of the eight has one."""
         points = np.asarray(points, dtype=np.float64)
         nz, ny, nx = self.shape
-        base = np.floor(points).astype(np.int64)
-        fraction = points - base
+        index, packed = np.asarray(self.index), np.asarray(self.packed)     # plain arrays, not memory maps
         total = np.zeros((len(points), 3), np.float32)
-        for corner in itertools.product((0, 1), repeat=3):
-            voxel = base + corner
-            weight = np.prod(np.where(corner, fraction, 1 - fraction), axis=1)
-            inside = np.all((voxel >= 0) & (voxel < [nx, ny, nz]), axis=1)
-            linear = (voxel[:, 2] * ny + voxel[:, 1]) * nx + voxel[:, 0]
-            slot = np.searchsorted(self.index, linear)
-            slot = np.minimum(slot, max(len(self.index) - 1, 0))
-            found = inside & (len(self.index) > 0)
-            found[found] = self.index[slot[found]] == linear[found]
-            total[found] += weight[found, None].astype(np.float32) * octahedral_decode(self.packed[slot[found]])
+        if not len(index):
+            return np.full((len(points), 3), np.nan, np.float32)
+        base = np.floor(points).astype(np.int64)
+        fraction = (points - base).astype(np.float32)
+        x, y, z = base.T
+        top = len(index) - 1
+        for dz, dy in itertools.product((0, 1), repeat=2):
+            row_ok = (y + dy >= 0) & (y + dy < ny) & (z + dz >= 0) & (z + dz < nz)
+            linear = ((z + dz) * ny + (y + dy)) * nx + x
+            slot = np.minimum(np.searchsorted(index, linear), top)
+            weight_yz = (fraction[:, 1] if dy else 1 - fraction[:, 1]) * (fraction[:, 2] if dz else 1 - fraction[:, 2])
+            first = row_ok & (x >= 0) & (index[slot] == linear)
+            # voxel x + 1 of the same row, when present, sorts right after voxel x (or at x's place if x is absent)
+            after = np.minimum(slot + first, top)
+            second = row_ok & (x + 1 < nx) & (index[after] == linear + 1)
+            for found, where, weight in ((first, slot, 1 - fraction[:, 0]), (second, after, fraction[:, 0])):
+                total[found] += (weight * weight_yz)[found, None] * octahedral_decode(packed[where[found]])
         length = np.linalg.norm(total, axis=1, keepdims=True)
         with np.errstate(invalid="ignore", divide="ignore"):
-            return np.where(length > 1e-12, total / length, np.nan)
+            return np.where(length > 1e-12, total / length, np.nan).astype(np.float32)
 
 
 def surface_normals(mask, sample=None, source=None):
