@@ -187,9 +187,9 @@ def bench_stages(path, repeat, size=512):
                           ("gradient + ao", RenderOptions(size=(size, size), scale=1.0, ao=True)),
                           ("depth-gradient", RenderOptions(size=(size, size), scale=1.0, shading="depth-gradient"))):
         view = options.view(30.0, 10.0)
-        seconds = [picture(loaded.segments, view, options, normals=loaded.normals()).seconds for _ in range(repeat)]
+        seconds = [picture(loaded.segments, view, options).seconds for _ in range(repeat)]
         result[name] = {stage: statistics.median(s[stage] for s in seconds) for stage in ("render", "shade")}
-    rgb = picture(loaded.segments, view, RenderOptions(size=(size, size), scale=1.0), normals=loaded.normals()).rgb
+    rgb = picture(loaded.segments, view, RenderOptions(size=(size, size), scale=1.0)).rgb
     with tempfile.TemporaryDirectory() as folder:
         result["write_s"] = median_seconds(lambda: output.write_png(Path(folder) / "p.png", rgb), repeat)[0]
     result["normals_at_encode_s"] = loaded.seconds["prepare"]

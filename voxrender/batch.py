@@ -300,9 +300,7 @@ def render_task(item, view, index, segments_path, out_dir, encode_seconds):
         status = Path(segments_path).stat()
         encoded = _encoded(str(segments_path), (status.st_size, status.st_mtime_ns))
         tree = encoded.octree() if method_record(item.method).octree else None
-        normals = encoded.normals() if item.options.shading == "gradient" else None
-        result = picture(encoded.segments, framed(item, view, encoded.segments), item.options, tree=tree,
-                         normals=normals)
+        result = picture(encoded.segments, framed(item, view, encoded.segments), item.options, tree=tree)
         for path in outputs.paths():
             path.parent.mkdir(parents=True, exist_ok=True)
         seconds = write_outputs(result, outputs, about(encoded.segments))   # this picture's stages

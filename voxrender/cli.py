@@ -254,8 +254,7 @@ def render_command(input_path, output_path, depth_out, depth_png, stats_json, no
     for path in outputs.paths():
         output.check_writable(path)
     loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
-    result = picture(loaded.segments, render_options.view(*angles), render_options, progress,
-                     normals=loaded.normals() if render_options.shading == "gradient" else None)
+    result = picture(loaded.segments, render_options.view(*angles), render_options, progress)
     result.seconds = {**loaded.seconds, **result.seconds}
     write_outputs(result, outputs, about(loaded.segments))
     if not result.image.coverage.any():
@@ -519,7 +518,7 @@ def demo_command(output_path, headsq, size):
     rows, captions = [], []
     for tissue, threshold in DEMO_TISSUES:
         loaded = load_segments(headsq, DEMO_READ, PrepOptions(threshold=threshold), progress)
-        pictures = [picture(loaded.segments, options.view(*angles), options, normals=loaded.normals()).rgb
+        pictures = [picture(loaded.segments, options.view(*angles), options).rgb
                     for _, angles in DEMO_VIEWS]
         rows.append(pictures)
         captions.append([f"{tissue}, {name}" for name, _ in DEMO_VIEWS])

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["SurfaceNormals", "surface_band", "surface_normals", "octahedral_encode", "octahedral_decode",
-           "normal_image"]
+           "normal_image", "kept"]
 
 
 
@@ -173,6 +173,14 @@ def surface_normals(mask, sample=None, source=None):
     outward = -gradient[keep] / length[keep, None]                    # the object is where values are high
     index = ((z * ny + y) * nx + x)[keep].astype(np.int64)
     return SurfaceNormals((nz, ny, nx), index, octahedral_encode(outward), source or "grey values")
+
+
+def kept(segments):
+    """The normals kept with ``segments``; when there are none (a binary input, an old ``.vxs``), those of the
+    binary mask, built now and kept with them."""
+    if segments.normals is None:
+        segments.normals = surface_normals(segments.to_mask())
+    return segments.normals
 
 
 def normal_image(depth, view, shape, normals):

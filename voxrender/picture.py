@@ -153,13 +153,9 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
     started = time.perf_counter()
     normal_image = None
     if options.shading == "gradient":
-        from .normals import normal_image as at_hits, surface_normals
+        from .normals import kept, normal_image as at_hits
 
-        if normals is None:
-            if segments.normals is None:
-                segments.normals = surface_normals(segments.to_mask())
-            normals = segments.normals
-        normal_image = at_hits(image.depth, image.view, segments.shape, normals)
+        normal_image = at_hits(image.depth, image.view, segments.shape, normals or kept(segments))
     occlusion = shade.ambient_occlusion(image.depth, image.view.scale) if options.ao else None
     rgb = shade.shade(image.depth, options.shading, image.view.scale, options.light, options.colour,
                       options.background, normal_image, occlusion)

@@ -63,8 +63,8 @@ def is_segments_file(path):
 
 @dataclass
 class Encoded:
-    """An encoded object: its segments, the seconds spent loading (``load``) and preparing (``prepare``)
-    them, and the region octree, built on first use and kept (:meth:`octree`)."""
+    """An encoded object: its segments (with their surface normals), the seconds spent loading (``load``) and
+    preparing (``prepare``) them, and the region octree, built on first use and kept (:meth:`octree`)."""
 
     segments: segments.Segments
     seconds: dict = field(default_factory=dict)
@@ -77,15 +77,6 @@ class Encoded:
 
             self._octree = build(self.segments.to_mask())
         return self._octree
-
-    def normals(self):
-        """The surface normals: those kept with the segments (from grey values), else from the binary mask
-        (built now, once)."""
-        if self.segments.normals is None:
-            from .normals import surface_normals
-
-            self.segments.normals = surface_normals(self.segments.to_mask())
-        return self.segments.normals
 
 
 def load_segments(path, read=None, prepare=None, progress=None):

@@ -58,9 +58,8 @@ def render_sheet(rows, views, progress=None):
             framed = [v.fitted(encoded.segments.shape, box) for v in chosen]
             common = min(v.scale for v in framed)
             chosen = [replace(v, scale=common, centre=f.centre) for v, f in zip(chosen, framed)]
-        normals = encoded.normals() if options.shading == "gradient" else None
         tree = encoded.octree() if _uses_octree(options.method) else None
-        pictures.append([picture(encoded.segments, v, options, progress, tree, normals).rgb for v in chosen])
+        pictures.append([picture(encoded.segments, v, options, progress, tree).rgb for v in chosen])
         captions.append([f"{row_label}, {label}" for label, _ in views])
     return sheet(pictures, captions)
 
