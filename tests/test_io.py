@@ -435,3 +435,17 @@ def test_nifti_2_and_ome_tiff(tmp_path):
                                "PhysicalSizeXUnit": "mm", "PhysicalSizeYUnit": "mm", "PhysicalSizeZUnit": "mm"})
     volume = io.read_volume(tmp_path / "ome.ome.tif")
     assert volume.spacing == (0.5, 0.25, 2.0) and volume.meta["spacing_from"] == "OME metadata"
+
+
+def test_nrrd_4d_takes_a_frame(tmp_path):
+    import nrrd
+
+    data = np.arange(2 * 3 * 4 * 5, dtype=np.int16).reshape(2, 3, 4, 5)       # [t, z, y, x]
+    nrrd.write(str(tmp_path / "four.nrrd"), data, {"space": "left-posterior-superior", "kinds":
+               ["domain", "domain", "domain", "list"], "space directions": [[1, 0, 0], [0, 1, 0], [0, 0, 2],
+                                                                             [np.nan] * 3]}, index_order="C")
+    with pytest.raises(InputError, match="holds 2 volumes") as info:
+        io.read_volume(tmp_path / "four.nrrd")
+    assert info.value.parameter == "frame"
+    volume = io.read_volume(tmp_path / "four.nrrd", frame=1)
+    assert np.array_equal(volume.values, data[1]) and volume.spacing == (1.0, 1.0, 2.0)
