@@ -17,7 +17,7 @@ import numpy as np
 
 from . import output, shade
 from .errors import InputError
-from .shade import HEADLIGHT, SHADINGS
+from .shade import HEADLIGHT, SHADINGS, light_direction
 from .render import DEFAULT_METHOD, Clip, DepthImage, method_record, render
 from .view import View
 
@@ -82,9 +82,7 @@ class RenderOptions:
             raise InputError(f"unknown shading {self.shading!r}; choose {' or '.join(SHADINGS)}", parameter="shading")
         if self.fit not in ("object", "volume"):
             raise InputError(f"{self.fit!r}: choose 'object' or 'volume'", parameter="fit")
-        light = np.asarray(self.light, dtype=float)
-        if light.shape != (3,) or not np.all(np.isfinite(light)) or not np.linalg.norm(light) > 0:
-            raise InputError(f"{self.light} must be a non-zero direction x, y, z", parameter="light")
+        light_direction(self.light)
         View(size=self.size, scale=self.scale)   # checks size and scale
 
     def view(self, alpha=0.0, beta=0.0, gamma=0.0):

@@ -12,8 +12,8 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["shade", "SHADINGS", "HEADLIGHT", "blinn_phong", "ambient_occlusion", "depth_shading", "gradient_shading", "surface_normals",
-           "depth_to_uint16", "normals_to_rgb"]
+__all__ = ["shade", "SHADINGS", "HEADLIGHT", "light_direction", "blinn_phong", "ambient_occlusion", "depth_shading",
+           "gradient_shading", "surface_normals", "depth_to_uint16", "normals_to_rgb"]
 
 
 def _depth_range(depth):
@@ -22,6 +22,25 @@ def _depth_range(depth):
         return covered, 0.0, 1.0
     near, far = float(depth[covered].min()), float(depth[covered].max())
     return covered, near, max(far, near + 1e-6)
+
+
+def _depth_cue(depth, strength):
+    """``covered`` and a factor falling linearly from 1 at the nearest covered pixel to ``1 - strength`` at
+    the farthest."""
+    covered, near, far = _depth_range(depth)
+    return covered, 1 - strength * np.where(covered, (np.where(covered, depth, near) - near) / (far - near), 0)
+
+
+def light_direction(light):
+    """The unit vector toward ``light``, checked: three finite numbers, not all zero.
+
+    >>> light_direction((0, 3, -4)).tolist()
+    [0.0, 0.6, -0.8]
+    """
+    light = np.asarray(light, dtype=float)
+    if light.shape != (3,) or not np.all(np.isfinite(light)) or not np.linalg.norm(light) > 0:
+        raise InputError(f"{tuple(light.ravel().tolist())} must be a non-zero direction x, y, z", parameter="light")
+    return light / np.linalg.norm(light)
 
 
 def depth_shading(depth, near_brightness=1.0, far_brightness=0.2):
@@ -113,12 +132,8 @@ def gradient_shading(depth, scale=1.0, light=(0.0, 0.0, -1.0), ambient=0.1, dept
     >>> float(flat[1, 1])
     1.0
     """
-    light = np.asarray(light, dtype=float)
-    if light.shape != (3,) or not np.linalg.norm(light) > 0:
-        raise InputError(f"{tuple(light)} must be a non-zero direction x, y, z", parameter="light")
-    lambert = np.clip(surface_normals(depth, scale, smoothing) @ (light / np.linalg.norm(light)), 0, 1)
-    covered, near, far = _depth_range(depth)
-    cue = 1 - depth_cue * np.where(covered, (np.where(covered, depth, near) - near) / (far - near), 0)
+    lambert = np.clip(surface_normals(depth, scale, smoothing) @ light_direction(light), 0, 1)
+    covered, cue = _depth_cue(depth, depth_cue)
     return np.where(covered, (ambient + (1 - ambient) * lambert) * cue, 0.0)
 
 
@@ -136,17 +151,13 @@ def blinn_phong(normals, depth, light=HEADLIGHT, ambient=0.12, diffuse=0.78, spe
     >>> round(float(blinn_phong(flat, np.zeros((1, 1)), light=(0, 0, -1))[0, 0]), 3)
     1.0
     """
-    light = np.asarray(light, dtype=np.float32)
-    if light.shape != (3,) or not np.linalg.norm(light) > 0:
-        raise InputError(f"{tuple(light)} must be a non-zero direction x, y, z", parameter="light")
-    light = light / np.linalg.norm(light)
+    light = light_direction(light).astype(np.float32)
     halfway = light + np.array([0, 0, -1], np.float32)
     halfway = halfway / max(float(np.linalg.norm(halfway)), 1e-6)
     n = np.nan_to_num(np.asarray(normals, dtype=np.float32))
     lambert = np.clip(n @ light, 0, 1)
     highlight = np.clip(n @ halfway, 0, 1) ** shininess
-    covered, near, far = _depth_range(depth)
-    cue = 1 - depth_cue * np.where(covered, (np.where(covered, depth, near) - near) / (far - near), 0)
+    covered, cue = _depth_cue(depth, depth_cue)
     total = ambient + diffuse * lambert + specular * highlight
     return np.where(covered, np.clip(total, 0, 1) * cue, 0.0)
 
