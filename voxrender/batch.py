@@ -37,7 +37,7 @@ from .errors import InputError
 from .picture import Outputs, RenderOptions, about, picture, write_outputs
 from .pipeline import Encoded, PrepOptions, ReadOptions, is_segments_file, load_segments
 from .render import method_record
-from .view import PRESETS, angles_from_matrix, rotation_matrix
+from .view import PRESETS, angles_from_matrix, frame_together, rotation_matrix
 
 __all__ = ["ViewSpec", "Patterns", "Item", "parse_views", "turntable", "expand_inputs", "read_manifest",
            "cache_key", "run_batch", "SUMMARY_COLUMNS"]
@@ -320,9 +320,8 @@ def framed(item, view, encoded):
     chosen = item.options.view(view.alpha, view.beta, view.gamma)
     if item.options.scale is not None or item.options.fit != "object" or len(item.views) < 2:
         return chosen
-    box = encoded.bounding_box()
-    scale = min(item.options.view(v.alpha, v.beta, v.gamma).fitted(encoded.shape, box).scale for v in item.views)
-    return replace(chosen, scale=scale, centre=chosen.fitted(encoded.shape, box).centre)
+    others = [item.options.view(v.alpha, v.beta, v.gamma) for v in item.views]
+    return frame_together([chosen, *others], encoded.shape, encoded.bounding_box())[0]
 
 
 def is_done(path, size):

@@ -46,18 +46,14 @@ def render_sheet(rows, views, progress=None):
 
     A row of several views frames them with one scale, as a batch does.
     """
-    from dataclasses import replace
-
     from .picture import picture
+    from .view import frame_together
 
     pictures, captions = [], []
     for row_label, encoded, options in rows:
         chosen = [options.view(*angles) for _, angles in views]
         if options.scale is None and options.fit == "object":
-            box = encoded.segments.bounding_box()
-            framed = [v.fitted(encoded.segments.shape, box) for v in chosen]
-            common = min(v.scale for v in framed)
-            chosen = [replace(v, scale=common, centre=f.centre) for v, f in zip(chosen, framed)]
+            chosen = frame_together(chosen, encoded.segments.shape, encoded.segments.bounding_box())
         tree = encoded.octree() if _uses_octree(options.method) else None
         pictures.append([picture(encoded.segments, v, options, progress, tree).rgb for v in chosen])
         captions.append([f"{row_label}, {label}" for label, _ in views])

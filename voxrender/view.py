@@ -19,7 +19,7 @@ import numpy as np
 from .errors import InputError
 
 __all__ = ["View", "rotation_matrix", "angles_from_matrix", "angles_from_vpn", "vpn_from_angles",
-           "PRESETS", "fit_scale"]
+           "PRESETS", "fit_scale", "frame_together"]
 
 # Viewer positions for a stack read in DICOM patient order (LPS): x runs to the
 # patient's left, y to the back, z up to the head.  Image up is the head (or, seen
@@ -270,3 +270,16 @@ class View:
         return cls(alpha=alpha, beta=beta, gamma=gamma, **kwargs)
 
 
+
+
+def frame_together(views, shape, box):
+    """``views`` framing the object in ``box`` with one scale, the largest at which every view holds it, each
+    centred on the object as it sees it; so the size does not jump between the views of a sheet or turntable.
+
+    >>> views = [View(0, 0, size=(100, 100)), View(0, 90, size=(100, 100))]
+    >>> [round(v.scale, 3) for v in frame_together(views, (10, 10, 10), ((0, 9), (0, 9), (0, 4)))]
+    [9.091, 9.091]
+    """
+    fitted = [v.fitted(shape, box) for v in views]
+    scale = min(v.scale for v in fitted)
+    return [replace(v, scale=scale) for v in fitted]
