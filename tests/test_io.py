@@ -449,3 +449,21 @@ def test_nrrd_4d_takes_a_frame(tmp_path):
     assert info.value.parameter == "frame"
     volume = io.read_volume(tmp_path / "four.nrrd", frame=1)
     assert np.array_equal(volume.values, data[1]) and volume.spacing == (1.0, 1.0, 2.0)
+    with pytest.raises(InputError, match="is not a volume") as info:
+        io.read_volume(tmp_path / "four.nrrd", frame=5)
+    assert info.value.parameter == "frame"
+
+
+@pytest.mark.parametrize("name", ["three.nii.gz", "three.nrrd"])
+def test_a_frame_of_a_3d_file_is_refused(tmp_path, name):
+    import nibabel
+    import nrrd
+
+    data = np.zeros((3, 4, 5), np.int16)
+    if name.endswith(".nrrd"):
+        nrrd.write(str(tmp_path / name), data)
+    else:
+        nibabel.save(nibabel.Nifti1Image(data, np.eye(4)), str(tmp_path / name))
+    with pytest.raises(InputError, match="holds one volume; a frame number applies to 4-D files") as info:
+        io.read_volume(tmp_path / name, frame=0)
+    assert info.value.parameter == "frame"

@@ -743,6 +743,19 @@ def _tiff_spacing(path):
     return (1.0, 1.0, 1.0), "default (the TIFF has no ImageJ or OME spacing)"
 
 
+def _check_frame(path, frame, count=None):
+    """Check the ``frame`` asked of a 4-D file of ``count`` volumes (``None``: a 3-D file, which takes none)."""
+    if count is None:
+        if frame is not None:
+            raise InputError(f"{path} holds one volume; a frame number applies to 4-D files", parameter="frame")
+    elif frame is None:
+        raise InputError(f"{path} holds {count} volumes (4-D); choose one with a frame number 0 to {count - 1}",
+                         parameter="frame")
+    elif not 0 <= frame < count:
+        raise InputError(f"{frame} is not a volume of {path}, which holds {count} (0 to {count - 1})",
+                         parameter="frame")
+
+
 def _read_nifti(path, progress, frame=None):
     import nibabel
     from nibabel.filebasedimages import ImageFileError
@@ -769,17 +782,12 @@ def _read_nifti(path, progress, frame=None):
     if len(shape) == 4 and shape[3] == 1 and frame is None:
         frame = 0
     if len(shape) == 4:
-        if frame is None:
-            raise InputError(f"{path} holds {shape[3]} volumes (4-D); choose one with a frame number 0 to "
-                             f"{shape[3] - 1}", parameter="frame")
-        if not 0 <= frame < shape[3]:
-            raise InputError(f"{frame} is not a volume of {path}, which holds {shape[3]} (0 to {shape[3] - 1})",
-                             parameter="frame")
+        _check_frame(path, frame, shape[3])
         data = data[..., frame]
-    elif frame is not None:
-        raise InputError(f"{path} holds one volume; a frame number applies to 4-D files", parameter="frame")
-    elif len(shape) != 3:
-        raise InputError(f"{path} holds a {len(shape)}-D image; voxrender needs a 3-D volume")
+    else:
+        _check_frame(path, frame)
+        if len(shape) != 3:
+            raise InputError(f"{path} holds a {len(shape)}-D image; voxrender needs a 3-D volume")
     try:
         values = np.asanyarray(data)
     except (OSError, EOFError, ValueError) as exc:         # a truncated or corrupt file
@@ -827,17 +835,11 @@ def _read_nrrd(path, progress, frame=None):
         if directions is None or sum(spatial) != 3:
             raise InputError(f"{path} is 4-D without three spatial axes; voxrender needs a 3-D volume")
         extra = spatial.index(False)                        # in NRRD's axis order (fastest first)
-        count = values.shape[3 - extra]
-        if frame is None:
-            raise InputError(f"{path} holds {count} volumes (4-D); choose one with a frame number 0 to {count - 1}",
-                             parameter="frame")
-        if not 0 <= frame < count:
-            raise InputError(f"{frame} is not a volume of {path}, which holds {count} (0 to {count - 1})",
-                             parameter="frame")
+        _check_frame(path, frame, values.shape[3 - extra])
         values = np.take(values, frame, axis=3 - extra)
         directions = [d for d, s in zip(directions, spatial) if s]
-    elif frame is not None:
-        raise InputError(f"{path} holds one volume; a frame number applies to 4-D files", parameter="frame")
+    else:
+        _check_frame(path, frame)
     if values.ndim != 3:
         raise InputError(f"{path} holds a {values.ndim}-D array; voxrender needs a 3-D volume")
     meta = {"spacing_from": "NRRD header"}
