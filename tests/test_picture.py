@@ -86,3 +86,27 @@ def test_options_are_checked_when_made():
         assert info.value.parameter == parameter
     assert RenderOptions("raycast", {"connectivity": "26"}, Clip(x=(1, None))).view(1, 2, 3) == \
         View(1, 2, 3, (512, 512), None)
+
+
+def test_normals_outputs(tmp_path, ball_file):
+    run("render", ball_file, "--threshold", 500, "--size", 48, "-o", tmp_path / "p.png",
+        "--normals-out", tmp_path / "n.npy", "--normals-png", tmp_path / "n.png", "--depth-out", tmp_path / "d.npy")
+    normals, depth = np.load(tmp_path / "n.npy"), np.load(tmp_path / "d.npy")
+    assert normals.shape == (48, 48, 3) and iio.imread(tmp_path / "n.png").shape == (48, 48, 3)
+    lit = np.isfinite(normals).all(axis=2)
+    assert lit.any() and not lit[~np.isfinite(depth)].any()
+    assert np.allclose(np.linalg.norm(normals[lit], axis=1), 1, atol=1e-4)
+    assert (normals[lit, 2] < 0).mean() > 0.95         # the visible side faces the viewer (negative Z')
+
+
+@pytest.mark.parametrize("command", ["render", "batch"])
+def test_normals_outputs_need_gradient_shading(tmp_path, ball_file, command):
+    out = tmp_path / ("p.png" if command == "render" else "out")
+    result = CliRunner().invoke(main, [command, str(ball_file), "--threshold", "500", "--shading", "depth",
+                                       "-o", str(out), "--normals-out",
+                                       str(tmp_path / "n.npy") if command == "render" else "{name}.npy"])
+    assert result.exit_code == 2 and result.stderr.count("\n") == 1
+    assert "--shading: normals are kept with gradient shading only" in result.stderr
+    assert not out.exists() and not (tmp_path / "n.npy").exists()
+    with pytest.raises(InputError, match="gradient shading only"):
+        Outputs(tmp_path / "p.png", normals=tmp_path / "n.npy").check(RenderOptions(shading="depth-gradient"))

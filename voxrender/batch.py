@@ -499,7 +499,8 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
 
 
 def _check_patterns(items, out_dir):
-    """Every output of every picture gets a distinct path with the right ending, before anything is made."""
+    """Every output of every picture gets a distinct path with the right ending and can be given (normals need
+    gradient shading), before anything is made."""
     seen = {}
     endings = {"picture": ".png", "depth": ".npy", "depth_png": ".png", "stats_json": ".json", "normals": ".npy",
                "normals_png": ".png"}
@@ -510,6 +511,7 @@ def _check_patterns(items, out_dir):
             except (KeyError, IndexError, ValueError) as exc:
                 raise InputError(f"an output pattern of {item.input} is not valid: use {{name}}, {{view}}, "
                                  f"{{method}}, {{index}} ({exc})", parameter="pattern") from None
+            outputs.check(item.options)
             for kind, ending in endings.items():
                 path = getattr(outputs, kind)
                 pattern = getattr(item.patterns, kind)

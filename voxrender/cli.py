@@ -249,8 +249,7 @@ def render_command(input_path, output_path, depth_out, depth_png, stats_json, no
     angles = _view_from(options)
     render_options = _render_options(options)
     outputs = Outputs(output_path, depth_out, depth_png, stats_json, normals_out, normals_png)
-    if (normals_out or normals_png) and render_options.shading != "gradient":
-        raise InputError("normals are kept with gradient shading only", parameter="shading")
+    outputs.check(render_options)
     for path in outputs.paths():
         output.check_writable(path)
     loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)

@@ -90,6 +90,9 @@ class RenderOptions:
         return View(alpha, beta, gamma, tuple(self.size), self.scale)
 
 
+NORMALS_NEED_GRADIENT = "normals are kept with gradient shading only; drop the normals outputs or shade by gradient"
+
+
 @dataclass(frozen=True)
 class Outputs:
     """Where a picture goes: the PNG and, optionally, the depth image (``.npy`` and 16-bit PNG) and a JSON
@@ -105,6 +108,12 @@ class Outputs:
     def paths(self):
         return [p for p in (self.picture, self.depth, self.depth_png, self.stats_json, self.normals,
                             self.normals_png) if p is not None]
+
+    def check(self, options):
+        """Refuse, before anything is rendered, an output that ``options`` cannot give: the normals are kept
+        with gradient shading only."""
+        if (self.normals is not None or self.normals_png is not None) and options.shading != "gradient":
+            raise InputError(NORMALS_NEED_GRADIENT, parameter="shading")
 
 
 @dataclass
@@ -171,8 +180,7 @@ def write_outputs(result, outputs, about=None):
     all stages.  ``about`` adds fields to the JSON report (e.g. the object's size).
     """
     if (outputs.normals is not None or outputs.normals_png is not None) and result.normals is None:
-        raise InputError("normals are kept with gradient shading only; drop the normals outputs or shade by "
-                         "gradient", parameter="normals")
+        raise InputError(NORMALS_NEED_GRADIENT, parameter="shading")
     started = time.perf_counter()
     output.write_png(outputs.picture, result.rgb)
     if outputs.depth is not None:
