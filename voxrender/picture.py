@@ -73,11 +73,7 @@ class RenderOptions:
     orientation_marks: bool = False
 
     def __post_init__(self):
-        record = method_record(self.method)
-        unknown = sorted(set(self.method_options) - set(record.options))
-        if unknown:
-            raise InputError(f"method {self.method!r} takes no option {unknown[0]!r} "
-                             f"(its options: {', '.join(record.options) or 'none'})", parameter=unknown[0])
+        method_record(self.method, self.method_options)
         if self.shading not in SHADINGS:
             raise InputError(f"unknown shading {self.shading!r}; choose {' or '.join(SHADINGS)}", parameter="shading")
         if self.fit not in ("object", "volume"):

@@ -79,15 +79,21 @@ METHODS = {
 DEFAULT_METHOD = "ftb"
 
 
-def method_record(name):
-    """The :class:`Method` registered as ``name``; an :class:`InputError` naming the choices otherwise.
+def method_record(name, options=()):
+    """The :class:`Method` registered as ``name``, which must take every one of ``options`` (names); an
+    :class:`InputError` naming the choices otherwise.
 
     >>> method_record("raycast").options
     ('connectivity', 'compare')
     """
     if name not in METHODS:
         raise InputError(f"unknown method {name!r}; choose one of {', '.join(METHODS)}", parameter="method")
-    return METHODS[name]
+    record = METHODS[name]
+    unknown = sorted(set(options) - set(record.options))
+    if unknown:
+        raise InputError(f"method {name!r} takes no option {unknown[0]!r} "
+                         f"(its options: {', '.join(record.options) or 'none'})", parameter=unknown[0])
+    return record
 
 
 @dataclass
@@ -143,12 +149,7 @@ def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, 
     >>> int(image.coverage.sum()), image.stats["pixels_lit"]
     (16, 16)
     """
-    record = method_record(method)
-    unknown = sorted(set(options) - set(record.options))
-    if unknown:
-        takes = ", ".join(record.options) or "none"
-        raise InputError(f"method {method!r} takes no option {unknown[0]!r} (its options: {takes})",
-                         parameter=unknown[0])
+    record = method_record(method, options)
     if not segments.segment_count:
         raise InputError("the object is empty: no voxel reaches the threshold")
     if fit not in ("object", "volume"):
