@@ -63,8 +63,7 @@ def timed_methods():
 def rendered(obj, view, method, **options):
     """``render`` of an :class:`Encoded` object; octree methods get the octree kept with it (built once, as
     the papers start from the octree).  A view without a scale fits the whole volume (as the papers' tables do)."""
-    tree = obj.octree() if METHODS[method].octree else None
-    return render(obj.segments, view, method, fit="volume", tree=tree, **options)
+    return render(obj.segments, view, method, fit="volume", tree=obj.tree_for(method), **options)
 
 
 def median_seconds(work, repeat):

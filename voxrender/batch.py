@@ -36,7 +36,6 @@ from . import __version__, output, parse, segments
 from .errors import InputError
 from .picture import Outputs, RenderOptions, about, picture, write_outputs
 from .pipeline import Encoded, PrepOptions, ReadOptions, is_segments_file, load_segments
-from .render import method_record
 from .view import PRESETS, angles_from_matrix, frame_together, rotation_matrix
 
 __all__ = ["ViewSpec", "Patterns", "Item", "parse_views", "turntable", "expand_inputs", "read_manifest",
@@ -299,8 +298,8 @@ def render_task(item, view, index, segments_path, out_dir, encode_seconds):
     try:
         status = Path(segments_path).stat()
         encoded = _encoded(str(segments_path), (status.st_size, status.st_mtime_ns))
-        tree = encoded.octree() if method_record(item.method).octree else None
-        result = picture(encoded.segments, framed(item, view, encoded.segments), item.options, tree=tree)
+        result = picture(encoded.segments, framed(item, view, encoded.segments), item.options,
+                         tree=encoded.tree_for(item.method))
         for path in outputs.paths():
             path.parent.mkdir(parents=True, exist_ok=True)
         seconds = write_outputs(result, outputs, about(encoded.segments))   # this picture's stages

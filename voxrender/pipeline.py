@@ -78,6 +78,12 @@ class Encoded:
             self._octree = build(self.segments.to_mask())
         return self._octree
 
+    def tree_for(self, method):
+        """The region octree when ``method`` traverses one (see :meth:`octree`), else ``None``."""
+        from .render import method_record
+
+        return self.octree() if method_record(method).octree else None
+
 
 def load_segments(path, read=None, prepare=None, progress=None):
     """The object in ``path``: a ``.vxs`` file, or a slice stack to binarize and encode.

@@ -54,13 +54,8 @@ def render_sheet(rows, views, progress=None):
         chosen = [options.view(*angles) for _, angles in views]
         if options.scale is None and options.fit == "object":
             chosen = frame_together(chosen, encoded.segments.shape, encoded.segments.bounding_box())
-        tree = encoded.octree() if _uses_octree(options.method) else None
+        tree = encoded.tree_for(options.method)
         pictures.append([picture(encoded.segments, v, options, progress, tree).rgb for v in chosen])
         captions.append([f"{row_label}, {label}" for label, _ in views])
     return sheet(pictures, captions)
 
-
-def _uses_octree(method):
-    from .render import method_record
-
-    return method_record(method).octree
