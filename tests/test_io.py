@@ -411,6 +411,22 @@ def test_nrrd_encodings_and_bad_files(tmp_path):
         io.read_volume(tmp_path / "magic.nrrd")
 
 
+@pytest.mark.parametrize("space,outcome", [("posterior-left-superior", "PLS -> LPS: axes yxz -> xyz"),
+                                           ("left-right-superior", "names a patient axis twice")])
+def test_nrrd_space_names_the_axes(tmp_path, space, outcome):
+    data = np.arange(60, dtype=np.uint8).reshape(3, 4, 5)
+    header = (f"NRRD0004\ntype: uint8\ndimension: 3\nspace: {space}\nsizes: 5 4 3\n"
+              "space directions: (1,0,0) (0,1,0) (0,0,2)\nencoding: raw\n\n")
+    (tmp_path / "v.nrrd").write_bytes(header.encode() + data.tobytes())
+    if "twice" in outcome:
+        with pytest.raises(InputError, match=outcome):
+            io.read_volume(tmp_path / "v.nrrd")
+        return
+    volume = io.read_volume(tmp_path / "v.nrrd")
+    assert volume.meta["reoriented"] == outcome
+    assert np.array_equal(volume.values, data.transpose(0, 2, 1)) and volume.spacing == (1.0, 1.0, 2.0)
+
+
 def test_tiff_spacing_from_imagej_metadata(tmp_path):
     import tifffile
 

@@ -35,6 +35,7 @@ from typing import Callable
 
 import numpy as np
 
+from . import orient
 from .errors import InputError
 
 __all__ = ["Volume", "RawLayout", "Reader", "READERS", "FORMATS", "read_volume", "detect_format", "natural_key",
@@ -207,8 +208,6 @@ def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, fra
     >>> read_volume(folder / "v.npy", orientation="RAS").meta["reoriented"]
     'RAS -> LPS: flipped x, y'
     """
-    from . import orient
-
     path = Path(path)
     progress = progress or _identity_progress
     if format != "auto" and format not in READERS:
@@ -637,8 +636,6 @@ def _read_metaimage(path, progress):
 def _metaimage_direction(header, path):
     """MetaImage's orientation: TransformMatrix (row k: the LPS direction of voxel axis k, ITK's frame), else
     AnatomicalOrientation (ITK's letters name the side each axis comes *from*: RAI is LPS)."""
-    from . import orient
-
     if "TransformMatrix" in header:
         try:
             rows = np.array([float(v) for v in header["TransformMatrix"].split()]).reshape(3, 3)
@@ -760,8 +757,6 @@ def _read_nifti(path, progress, frame=None):
     import nibabel
     from nibabel.filebasedimages import ImageFileError
 
-    from . import orient
-
     logger = nibabel.imageglobals.logger
     level = logger.level
     logger.setLevel(40)                              # nibabel logs header repairs; the errors below say enough
@@ -844,19 +839,18 @@ def _read_nrrd(path, progress, frame=None):
         raise InputError(f"{path} holds a {values.ndim}-D array; voxrender needs a 3-D volume")
     meta = {"spacing_from": "NRRD header"}
     space = str(header.get("space", "")).lower()
-    signs = {"left": 1, "right": -1, "posterior": 1, "anterior": -1, "superior": 1, "inferior": -1}
+    sides = ("left", "right", "posterior", "anterior", "superior", "inferior")
     short = {"lps": "left-posterior-superior", "ras": "right-anterior-superior", "las": "left-anterior-superior"}
     space = short.get(space, space)
     if directions is not None:
         matrix = np.array(directions, dtype=float).T        # column k: the direction of NRRD axis k (x, y, z)
         spacing = tuple(float(v) for v in np.linalg.norm(matrix, axis=0))
         words = space.split("-")
-        if len(words) == 3 and all(w in signs for w in words):
-            axes = [{"left": 0, "right": 0, "posterior": 1, "anterior": 1, "superior": 2, "inferior": 2}[w]
-                    for w in words]
-            to_lps = np.zeros((3, 3))
-            for row, (axis, word) in enumerate(zip(axes, words)):
-                to_lps[axis, row] = signs[word]
+        if len(words) == 3 and all(w in sides for w in words):
+            try:     # the space's axes as an orientation code: column k, the LPS direction of world axis k
+                to_lps = orient.direction_of("".join(w[0] for w in words))
+            except InputError:
+                raise InputError(f"{path}: NRRD space {header.get('space')!r} names a patient axis twice") from None
             direction = to_lps @ (matrix / np.array(spacing))
             meta["orientation_from"] = f"NRRD space {header.get('space')} and space directions"
             if header.get("space origin") is not None:
