@@ -233,7 +233,7 @@ def test_unwritable_outputs(tmp_path, cube_folder):
     (["--vpn", "1,2"], ["--vpn"]),
     (["--light", "up"], ["--light"]),
     (["--light", "0,0,0"], ["--light", "(0.0, 0.0, 0.0) must be a non-zero direction"]),
-    (["--background", "purple"], ["--background"]),
+    (["--background", "puce"], ["--background"]),
     (["--scale", "-1"], ["--scale"]),
     (["--method", "magic"], ["magic"]),
     (["--threshold", "bone"], ["--threshold"]),

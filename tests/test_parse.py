@@ -12,7 +12,7 @@ def test_vector_errors(text):
     assert info.value.parameter == "light"
 
 
-@pytest.mark.parametrize("text", ["300", "1,2", "red", "-1"])
+@pytest.mark.parametrize("text", ["300", "1,2", "reddish", "#12345g", "-1"])
 def test_colour_errors(text):
     with pytest.raises(InputError):
         parse.colour(text)

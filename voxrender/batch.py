@@ -36,13 +36,14 @@ from . import __version__, output, parse, segments
 from .errors import InputError
 from .picture import Outputs, RenderOptions, about, picture, write_outputs
 from .pipeline import Encoded, PrepOptions, ReadOptions, is_segments_file, load_segments
+from .prep import LabelSelection, otsu_threshold
 from .view import PRESETS, angles_from_matrix, frame_together, rotation_matrix
 
 __all__ = ["ViewSpec", "Patterns", "Item", "parse_views", "turntable", "expand_inputs", "read_manifest",
            "cache_key", "run_batch", "SUMMARY_COLUMNS"]
 
 SUMMARY_COLUMNS = ["input", "name", "view", "alpha", "beta", "gamma", "method", "output", "status", "error",
-                   "load_s", "prepare_s", "render_s", "shade_s", "write_s", "total_s", "stats"]
+                   "labels", "load_s", "prepare_s", "render_s", "shade_s", "write_s", "total_s", "stats"]
 
 
 @dataclass(frozen=True)
@@ -117,11 +118,13 @@ class Patterns:
     stats_json: str | None = None
     normals: str | None = None
     normals_png: str | None = None
+    labels_json: str | None = None
+    label_png: str | None = None
 
     def outputs(self, out_dir, **fields):
         return Outputs(*(None if pattern is None else Path(out_dir) / pattern.format(**fields)
                          for pattern in (self.picture, self.depth, self.depth_png, self.stats_json, self.normals,
-                                         self.normals_png)))
+                                         self.normals_png, self.labels_json, self.label_png)))
 
 
 @dataclass
@@ -135,10 +138,16 @@ class Item:
     options: RenderOptions = field(default_factory=RenderOptions)
     views: list = field(default_factory=lambda: parse_views())
     patterns: Patterns = field(default_factory=Patterns)
+    per_label: bool = False
 
     @property
     def method(self):
         return self.options.method
+
+    def label_picture(self, picture_path, label):
+        """Where the picture of one label goes, with ``per_label``: beside the view's picture, ``-label{N}``
+        added to its name."""
+        return picture_path.with_name(f"{picture_path.stem}-label{label}{picture_path.suffix}")
 
     def outputs(self, out_dir, view, index):
         return self.patterns.outputs(out_dir, name=self.name, view=view.label, method=self.method, index=index)
@@ -182,9 +191,9 @@ def unique_names(paths):
 def read_manifest(path):
     """Rows of a manifest: CSV with a header, or TOML with ``[[input]]`` tables.
 
-    Columns (all but ``input`` optional): ``input``, ``threshold``, ``views`` (preset names and
-    ``a,b,g`` triples separated by ``;``), ``method``, ``output`` (a pattern).  Relative inputs are
-    taken from the manifest's folder.
+    Columns (all but ``input`` optional): ``input``, ``labels`` (a label map of the input: the picture shows
+    its labels), ``threshold``, ``views`` (preset names and ``a,b,g`` triples separated by ``;``), ``method``,
+    ``output`` (a pattern).  Relative inputs and label maps are taken from the manifest's folder.
     """
     path = Path(path)
     if not path.is_file():
@@ -201,15 +210,18 @@ def read_manifest(path):
         raise InputError(f"manifest {path} needs an 'input' column (CSV header) or [[input]] tables (TOML), "
                          "with a path in every row")
     for row in rows:
-        if not Path(row["input"]).is_absolute():
-            row["input"] = str(path.parent / row["input"])
+        for column in ("input", "labels"):
+            if str(row.get(column) or "").strip() and not Path(str(row[column]).strip()).is_absolute():
+                row[column] = str(path.parent / str(row[column]).strip())
     return rows
 
 
-def items_from(inputs, manifest_rows, read, prepare, options, views, patterns):
+def items_from(inputs, manifest_rows, read, prepare, options, views, patterns, per_label=False):
     """The batch's items: one per input path, then one per manifest row (its columns override).
 
-    A row's ``threshold``, ``views``, ``method`` and ``output`` (the picture's pattern) are text, parsed here.
+    A row's ``labels``, ``threshold``, ``views``, ``method`` and ``output`` (the picture's pattern) are text,
+    parsed here.  A row's label map makes the object its labels (each in its colour); the threshold then
+    applies only when the row or the command gives one.
     """
     rows = [{"input": p} for p in inputs] + list(manifest_rows)
     if not rows:
@@ -224,6 +236,10 @@ def items_from(inputs, manifest_rows, read, prepare, options, views, patterns):
                 item_views = parse_views([p for p in parts if "," not in p],
                                          [parse.vector(p, "views") for p in parts if "," in p])
             item_prepare = prepare
+            if str(row.get("labels") or "").strip():
+                chosen = prepare.labels.chosen if prepare.labels else None
+                item_prepare = replace(prepare, labels=LabelSelection(chosen, True, Path(str(row["labels"]))),
+                                       threshold=None if prepare.threshold is otsu_threshold else prepare.threshold)
             if str(row.get("threshold") or "").strip():
                 item_prepare = replace(prepare, threshold=parse.threshold(str(row["threshold"])))
             item_options = options
@@ -232,7 +248,8 @@ def items_from(inputs, manifest_rows, read, prepare, options, views, patterns):
         except InputError as exc:
             raise InputError(f"{row['input']}: {exc}") from None
         item_patterns = replace(patterns, picture=str(row.get("output") or patterns.picture))
-        items.append(Item(str(row["input"]), name, read, item_prepare, item_options, item_views, item_patterns))
+        items.append(Item(str(row["input"]), name, read, item_prepare, item_options, item_views, item_patterns,
+                          per_label))
     return items
 
 
@@ -241,12 +258,14 @@ def cache_key(path, read, prepare):
     digest = hashlib.sha256()
     path = Path(path)
     files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+    if prepare.labels is not None and prepare.labels.source is not None:      # the paired label map shapes it too
+        files.append(Path(prepare.labels.source))
     if path.suffix.lower() == ".mhd" and path.is_file():
         files += [p for p in path.parent.iterdir() if p.suffix.lower() in (".raw", ".zraw")]
     if path.suffix.lower() == ".nhdr" and path.is_file():    # a detached NRRD header names its data file
         files += [p for p in path.parent.iterdir() if p.name.startswith(path.stem + ".") and p != path]
     for file in files:
-        digest.update(str(file.relative_to(path) if path.is_dir() else file.name).encode())
+        digest.update(str(file.relative_to(path) if file.is_relative_to(path) else file.name).encode())
         with open(file, "rb") as f:
             for block in iter(lambda: f.read(1 << 20), b""):
                 digest.update(block)
@@ -303,7 +322,10 @@ def render_task(item, view, index, segments_path, out_dir, encode_seconds):
         for path in outputs.paths():
             path.parent.mkdir(parents=True, exist_ok=True)
         seconds = write_outputs(result, outputs, about(encoded.segments))   # this picture's stages
+        if item.per_label and result.labels is not None:
+            _write_label_pictures(item, result, encoded.segments, outputs.picture)
         row.update(status="ok", error="", stats=json.dumps(result.image.stats, default=float),
+                   labels=len(result.image.stats.get("label_pixels", {})) if result.labels is not None else "",
                    load_s=encode_seconds.get("load", 0.0), prepare_s=encode_seconds.get("prepare", 0.0),  # the input's
                    **{f"{stage}_s": value for stage, value in seconds.items()})
     except InputError as exc:
@@ -311,6 +333,16 @@ def render_task(item, view, index, segments_path, out_dir, encode_seconds):
     except Exception as exc:  # reported in the summary; the batch goes on
         row.update(status="failed", error=f"internal error: {type(exc).__name__}: {exc}")
     return row
+
+
+def _write_label_pictures(item, result, segments, picture_path):
+    """With ``per_label``: each label the picture shows, alone, in its colour, from the same view and frame."""
+    options = replace(item.options, legend=False)
+    for label, (_, colour) in result.label_table.items():
+        if str(label) in result.image.stats["label_pixels"]:
+            alone = picture(segments.only(label), result.image.view,
+                            replace(options, colour=tuple(c / 255 for c in colour)))
+            output.write_png(item.label_picture(picture_path, label), alone.rgb)
 
 
 def framed(item, view, encoded):
@@ -502,7 +534,7 @@ def _check_patterns(items, out_dir):
     gradient shading), before anything is made."""
     seen = {}
     endings = {"picture": ".png", "depth": ".npy", "depth_png": ".png", "stats_json": ".json", "normals": ".npy",
-               "normals_png": ".png"}
+               "normals_png": ".png", "labels_json": ".json", "label_png": ".png"}
     for item in items:
         for index, view in enumerate(item.views):
             try:

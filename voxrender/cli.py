@@ -17,7 +17,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from . import __version__, batch, compare, io, lines, octree, orient, output, parse, prep, samples, segments
+from . import __version__, batch, colours, compare, io, lines, octree, orient, output, parse, prep, samples, segments
 from .sheet import render_sheet, sheet
 from .errors import InputError
 from .picture import Outputs, RenderOptions, about, picture, write_outputs
@@ -83,9 +83,22 @@ def _read_options(options):
 
 
 def _prep_options(options):
-    threshold = parse.threshold("otsu" if options["threshold"] is None else options["threshold"])
+    labels = None
+    if options["labels"] or options["label"] or options["labels_from"]:
+        chosen = parse.labels(options["label"]) if options["label"] else None
+        labels = prep.LabelSelection(chosen, bool(options["labels"] or options["labels_from"] and not chosen),
+                                     options["labels_from"])
+    if options["preset"] and options["threshold"] is not None:
+        raise InputError("give --preset or --threshold, not both (a preset is a window and a colour)",
+                         parameter="preset")
+    if options["preset"]:
+        threshold = colours.preset(options["preset"]).window
+    elif options["threshold"] is not None:
+        threshold = parse.threshold(options["threshold"])
+    else:
+        threshold = None if labels else prep.otsu_threshold
     crop = parse.crop(options["crop"]) if options["crop"] else None
-    return PrepOptions(threshold, crop, options["voxel"], options["resample"], options["min_object"])
+    return PrepOptions(threshold, crop, options["voxel"], options["resample"], options["min_object"], labels)
 
 
 def _render_options(options):
@@ -93,18 +106,23 @@ def _render_options(options):
     clip = Clip(*(parse.clip_range(options[f"clip_{axis}"], f"clip_{axis}") if options[f"clip_{axis}"] else None
                   for axis in "xyz"), options["cut_depth"])
     method_options = {"connectivity": options["connectivity"]} if options["connectivity"] else {}
+    colour = parse.colour(options["colour"], "colour") if options["colour"] else \
+        colours.preset(options["preset"]).colour if options.get("preset") else (255, 255, 255)
+    table = colours.read_colour_table(options["colours"]) if options["colours"] else None
     return RenderOptions(options["method"], method_options, clip if clip.active else None, options["fit"],
                          parse.size(options["size"]), options["scale"], options["supersample"], options["shading"],
-                         parse.vector(options["light"], "light"), background=parse.colour(options["background"]),
-                         ao=options["ao"], orientation_marks=options["orientation_marks"])
+                         parse.vector(options["light"], "light"), tuple(c / 255 for c in colour), table,
+                         options["legend"], background=parse.colour(options["background"]), ao=options["ao"],
+                         orientation_marks=options["orientation_marks"])
 
 
 def _check_vxs_options(path, options):
     """A .vxs file is already thresholded: refuse options that would silently do nothing."""
     if not is_segments_file(path):
         return
-    given = [flag(name) for name in ("threshold", "crop", "voxel", "raw", "spacing", "series", "frame", "orientation")
-             if options.get(name) is not None]
+    given = [flag(name) for name in ("threshold", "preset", "label", "labels", "labels_from", "crop", "voxel", "raw",
+                                     "spacing", "series", "frame", "orientation")
+             if options.get(name) not in (None, False)]
     if given:
         raise InputError(f"{path} is already encoded, so {', '.join(given)} cannot apply; "
                          "give the slice stack instead")
@@ -142,8 +160,20 @@ def _read_options_decorator(command):
 
 def _prep_options_decorator(command):
     return _decorate(command, [
-        click.option("--threshold", metavar="VALUE|otsu",
-                     help="Object is value >= VALUE (stored units, HU for CT); default: otsu."),
+        click.option("--threshold", metavar="VALUE|LO:HI|otsu",
+                     help="Object is value >= VALUE, or LO <= value <= HI (stored units, HU for CT; a side may be "
+                          "left out); default: otsu."),
+        click.option("--preset", metavar="NAME",
+                     help="A CT tissue: its HU window and colour (bone, skin, soft-tissue, contrast-vessels, lung; "
+                          "'voxrender presets' lists them)."),
+        click.option("--labels", is_flag=True,
+                     help="INPUT is a label map: every non-zero label (or those of --label) an object in its own "
+                          "colour."),
+        click.option("--label", metavar="N[,M...]",
+                     help="Render these labels of a label map as one object (with --labels: each in its colour)."),
+        click.option("--labels-from", type=click.Path(path_type=Path), metavar="FILE",
+                     help="A label map of INPUT (same grid): show its labels; --threshold/--preset then also select "
+                          "INPUT's values."),
         click.option("--crop", metavar="X0:X1,Y0:Y1,Z0:Z1", help="Subregion in input voxel indices."),
         click.option("--resample/--no-resample", default=True, show_default=True,
                      help="Resample to cubic voxels from the spacing."),
@@ -176,7 +206,13 @@ def _render_options_decorator(command):
                      help="gradient: lit grey-level gradient normals; depth-gradient: the paper's shading; depth."),
         click.option("--light", default=",".join(f"{v:g}" for v in HEADLIGHT), show_default=True, metavar="X,Y,Z",
                      help="Direction toward the light in image space (X right, Y down, Z away)."),
-        click.option("--background", default="black", show_default=True, metavar="GREY|R,G,B"),
+        click.option("--colour", "--color", "colour", metavar="NAME|#RRGGBB",
+                     help="Colour of a single object (default white, or the preset's)."),
+        click.option("--colours", "--colors", "colours", type=click.Path(path_type=Path), metavar="FILE",
+                     help="Names and colours of labels: CSV or JSON (label, name, r, g, b), Slicer .ctbl, or an "
+                          "ITK-SNAP label description (.txt)."),
+        click.option("--legend", is_flag=True, help="Draw the names and colours of the labels the picture shows."),
+        click.option("--background", default="black", show_default=True, metavar="NAME|GREY|R,G,B|#RRGGBB"),
         click.option("--ao", is_flag=True, help="Darken creases and pits (screen-space ambient occlusion)."),
         click.option("--orientation-marks", is_flag=True,
                      help="Write the patient directions (L/R, A/P, S/I) at the picture's edges."),
@@ -190,6 +226,11 @@ def _render_options_decorator(command):
                      help="Save the image-space unit normals (H x W x 3, NaN background); in a batch, a pattern."),
         click.option("--normals-png", type=click.Path(path_type=Path), metavar="FILE.png",
                      help="Save an RGB normal map; in a batch, a pattern."),
+        click.option("--labels-out", type=click.Path(path_type=Path), metavar="FILE.json",
+                     help="Save the labels the picture shows, with names, colours and pixel counts; in a batch, a "
+                          "pattern."),
+        click.option("--label-png", type=click.Path(path_type=Path), metavar="FILE.png",
+                     help="Save the label image (16-bit, one label per pixel, 0 background); in a batch, a pattern."),
     ])
 
 
@@ -243,12 +284,13 @@ def main():
 @click.option("--gamma", type=float, help="Rotation about Z1 (the view axis) in degrees.")
 @click.option("--vpn", metavar="I,J,K", help="View plane normal (object x,y,z toward the viewer).")
 @_render_options_decorator
-def render_command(input_path, output_path, depth_out, depth_png, stats_json, normals_out, normals_png, **options):
-    """Render INPUT (a slice folder, volume file or .vxs) to a shaded PNG."""
+def render_command(input_path, output_path, depth_out, depth_png, stats_json, normals_out, normals_png, labels_out,
+                   label_png, **options):
+    """Render INPUT (a slice folder, volume file, label map or .vxs) to a shaded PNG."""
     _check_vxs_options(input_path, options)
     angles = _view_from(options)
     render_options = _render_options(options)
-    outputs = Outputs(output_path, depth_out, depth_png, stats_json, normals_out, normals_png)
+    outputs = Outputs(output_path, depth_out, depth_png, stats_json, normals_out, normals_png, labels_out, label_png)
     outputs.check(render_options)
     for path in outputs.paths():
         output.check_writable(path)
@@ -287,8 +329,11 @@ def encode_command(input_path, output_path, as_octree, **options):
                    f"{len(octree.linear_octree(tree))} linear-octree codes")
         return
     segments.save(s, output_path)
+    chosen = [f"threshold {s.meta['threshold']}"] if "threshold" in s.meta else []
+    if "labels" in s.meta:
+        chosen.append(f"{len(s.meta['labels'])} labels" + (" as one object" if s.labels is None else ""))
     click.echo(f"{output_path}: {nx}x{ny}x{nz} voxels, {s.voxel_count} in the object, {s.segment_count} segments, "
-               f"threshold {s.meta['threshold']:g}")
+               f"{', '.join(chosen)}")
 
 
 @main.command("info")
@@ -371,6 +416,8 @@ class _BatchBar:
 @click.option("--pattern", default="{name}/{view}.png", show_default=True,
               help="Output names under --out: {name}, {view}, {method}, {index}.")
 @_render_options_decorator
+@click.option("--per-label", is_flag=True,
+              help="Also write each label the picture shows alone, beside it ({view}-label{N}.png).")
 @click.option("--sheet", "make_sheet", is_flag=True, help="Also lay all pictures out in OUT/sheet.png.")
 @click.option("--gif", is_flag=True, help="Also write each input's views as an animated GIF.")
 @click.option("--mp4", is_flag=True, help="Also write each input's views as an MP4 (extra 'video').")
@@ -379,7 +426,8 @@ class _BatchBar:
 @click.option("--scheduler", metavar="ADDRESS|local", help="Run on a Dask cluster ('local' starts one here).")
 @click.option("--cache", type=click.Path(path_type=Path), help="Cache of encoded objects (default OUT/.voxrender-cache).")
 def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pattern, depth_out, depth_png,
-                  stats_json, normals_out, normals_png, make_sheet, gif, mp4, fps, jobs, scheduler, cache, **options):
+                  stats_json, normals_out, normals_png, labels_out, label_png, per_label, make_sheet, gif, mp4, fps,
+                  jobs, scheduler, cache, **options):
     """Render many inputs from many views: pictures, summary.csv, index.html, and optionally a sheet or animation.
 
     Each input is encoded once (and cached); a failing input is reported and the others go on;
@@ -388,12 +436,12 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
     """
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"--out {out_dir} is a file; give a folder")
-    patterns = batch.Patterns(pattern, *(None if p is None else str(p)
-                                         for p in (depth_out, depth_png, stats_json, normals_out, normals_png)))
+    patterns = batch.Patterns(pattern, *(None if p is None else str(p) for p in (
+        depth_out, depth_png, stats_json, normals_out, normals_png, labels_out, label_png)))
     items = batch.items_from(batch.expand_inputs(inputs), batch.read_manifest(manifest) if manifest else [],
                              _read_options(options), _prep_options(options), _render_options(options),
                              batch.parse_views(views, [parse.vector(a, "angles") for a in angles], turntable, axis),
-                             patterns)
+                             patterns, per_label)
     animations = [kind for kind, wanted in (("gif", gif), ("mp4", mp4)) if wanted]
     started = time.perf_counter()
     summary = batch.run_batch(items, out_dir, jobs, scheduler, cache, animations, fps, _BatchBar, make_sheet)
@@ -418,11 +466,12 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
 @click.option("--methods", metavar="M1,M2,...", help="Rows of methods (one input): compare the algorithms.")
 @_render_options_decorator
 def sheet_command(inputs, output_path, views, angles, methods, depth_out, depth_png, stats_json, normals_out,
-                  normals_png, **options):
+                  normals_png, labels_out, label_png, **options):
     """Lay out pictures in a grid: one input's views x methods (--methods), or several inputs' views."""
     given = [flag for flag, value in (("--depth-out", depth_out), ("--depth-png", depth_png),
                                       ("--stats-json", stats_json), ("--normals-out", normals_out),
-                                      ("--normals-png", normals_png)) if value]
+                                      ("--normals-png", normals_png), ("--labels-out", labels_out),
+                                      ("--label-png", label_png)) if value]
     if given:
         raise InputError(f"a sheet is one picture: {', '.join(given)} cannot apply; use render or batch")
     output.check_writable(output_path)
@@ -474,6 +523,14 @@ def lines_command(table, trials, seed, side):
     for (a, b), printed in lines.TABLE1_PRINTED.items():
         click.echo(f"* the paper prints {printed} for {a}/{b}; read as a swap of the digits of "
                    f"{lines.TABLE1_ANALYTICAL[(a, b)]}, the mean of {a}/{b}")
+
+
+@main.command("presets")
+def presets_command():
+    """List the CT tissue presets of --preset: HU window, colour, and where the values come from."""
+    for name, tissue in colours.PRESETS.items():
+        click.echo(f"{name:17} {str(tissue.window) + ' HU':16} rgb {','.join(map(str, tissue.colour)):12} "
+                   f"{tissue.source}")
 
 
 @main.command("samples")

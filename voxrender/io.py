@@ -865,7 +865,31 @@ def _read_nrrd(path, progress, frame=None):
         meta["orientation_from"] = "unknown: NRRD without space directions"
     if direction is not None and abs(abs(np.linalg.det(direction)) - 1) > 1e-3:
         raise InputError(f"{path}: its space directions are not orthogonal; voxrender needs a rectilinear grid")
+    table = _segment_table(header, 0 if frame is None else frame)
+    if table:
+        meta["label_table"] = table
     return Volume(values, check_spacing(spacing, path), meta, direction)
+
+
+def _segment_table(header, layer=0):
+    """The names and colours of a 3D Slicer ``.seg.nrrd``'s segments (``SegmentN_Name``, ``_Color`` as r g b in
+    0..1, ``_LabelValue``, ``_Layer``) in ``layer``, as ``{"label": {"name", "colour": [r, g, b]}}``."""
+    table = {}
+    for key in header:
+        match = re.fullmatch(r"Segment(\d+)_Name", str(key))
+        if not match:
+            continue
+        prefix = f"Segment{match.group(1)}_"
+        try:
+            label = int(header.get(prefix + "LabelValue", int(match.group(1)) + 1))
+            if int(header.get(prefix + "Layer", 0)) != layer:
+                continue
+            colour = [int(round(float(c) * 255)) for c in str(header.get(prefix + "Color", "")).split()]
+        except ValueError:
+            continue
+        if label > 0 and len(colour) == 3 and all(0 <= c <= 255 for c in colour):
+            table[str(label)] = {"name": str(header[key]), "colour": colour}
+    return table
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""Orientation marks: the patient direction at each edge of a picture, as radiologists label them.
+"""Marks on a picture: the patient direction at each edge, as radiologists label them, and a legend of labels.
 
 Directions come from the canonical patient frame (x toward the patient's left, y toward the back, z toward the
 head), so they are right for every input whose orientation is known.
@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["edge_letters", "draw_marks"]
+__all__ = ["edge_letters", "draw_marks", "draw_legend"]
 
 _TOWARD = ("L", "P", "S")     # the side each object axis grows toward
 _AWAY = ("R", "A", "I")
@@ -48,4 +48,37 @@ def draw_marks(rgb, view, colour=(255, 220, 0)):
                                                                           height - 13)}
     for edge, (x, y) in places.items():
         draw.text((x, y), letters[edge], fill=tuple(colour))
+    return np.asarray(image)
+
+
+def draw_legend(rgb, entries, text=(235, 235, 235)):
+    """``rgb`` with a legend in its lower left corner: a swatch and a name for each ``(name, (r, g, b))`` of
+    ``entries``, on a dark band; what does not fit is summed up as "+N more".
+
+    >>> picture = draw_legend(np.zeros((60, 80, 3), np.uint8), [("bone", (241, 214, 145))])
+    >>> picture.shape, bool((picture == (241, 214, 145)).all(axis=2).any())
+    ((60, 80, 3), True)
+    """
+    from PIL import Image, ImageDraw
+
+    image = Image.fromarray(np.ascontiguousarray(rgb))
+    draw = ImageDraw.Draw(image)
+    height, width = rgb.shape[:2]
+    line = 12                                                   # the default bitmap font is 11 pixels high
+    room = max((height - 8) // line, 1)
+    shown = list(entries) if len(entries) <= room else list(entries)[:room - 1]
+    lines = [(name, colour) for name, colour in shown]
+    if len(shown) < len(entries):
+        lines.append((f"+{len(entries) - len(shown)} more", None))
+    widest = max((draw.textlength(name) for name, _ in lines), default=0)
+    top = height - 4 - line * len(lines)
+    band = np.asarray(image).copy()
+    band[max(top - 3, 0):, :min(int(widest) + 24, width)] //= 3            # darken, so the names can be read
+    image = Image.fromarray(band)
+    draw = ImageDraw.Draw(image)
+    for k, (name, colour) in enumerate(lines):
+        y = top + k * line
+        if colour is not None:
+            draw.rectangle((4, y + 1, 12, y + 9), fill=tuple(int(c) for c in colour))
+        draw.text((17, y), name, fill=text)
     return np.asarray(image)

@@ -195,9 +195,7 @@ def normal_image(depth, view, shape, normals):
     covered = np.isfinite(depth)
     if not covered.any():
         return out
-    rows, columns = np.nonzero(covered)
-    xs, ys = view.pixel_centres(columns, rows)
-    points = np.stack(view.to_object(xs, ys, depth[rows, columns].astype(np.float64) + 1e-4, shape), axis=1)
+    rows, columns, points = view.hit_points(depth, shape, beyond=1e-4)
     found = normals.at(points) @ view.matrix.T                       # object -> image space
     out[rows, columns] = found
     return out

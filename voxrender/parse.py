@@ -14,9 +14,9 @@ import numpy as np
 
 from .errors import InputError
 from .io import RawLayout
-from .prep import otsu_threshold
+from .prep import Window, otsu_threshold
 
-__all__ = ["size", "vector", "colour", "clip_range", "crop", "threshold", "raw_layout"]
+__all__ = ["size", "vector", "colour", "clip_range", "crop", "threshold", "labels", "raw_layout"]
 
 
 def size(text):
@@ -53,23 +53,15 @@ def vector(text, parameter, count=3):
 
 
 def colour(text, parameter="background"):
-    """A colour: a grey level ``"40"``, ``"r,g,b"`` in 0..255, or a name (black, white, grey).
+    """A colour: a name (white, black, grey, red, bone ...), ``#rrggbb``, a grey level ``"40"`` or ``"r,g,b"``
+    in 0..255 (see :func:`voxrender.colours.named_colour`).
 
-    >>> colour("white"), colour("20,30,40"), colour("7")
-    ((255, 255, 255), (20, 30, 40), (7, 7, 7))
+    >>> colour("white"), colour("20,30,40"), colour("7"), colour("#0000ff")
+    ((255, 255, 255), (20, 30, 40), (7, 7, 7), (0, 0, 255))
     """
-    names = {"black": (0, 0, 0), "white": (255, 255, 255), "grey": (128, 128, 128), "gray": (128, 128, 128)}
-    if str(text).lower() in names:
-        return names[str(text).lower()]
-    try:
-        values = tuple(int(p) for p in str(text).split(","))
-    except ValueError:
-        values = ()
-    if len(values) == 1:
-        values = values * 3
-    if len(values) != 3 or not all(0 <= v <= 255 for v in values):
-        raise InputError(f"{text!r} must be a grey level 0..255, r,g,b, black or white", parameter=parameter)
-    return values
+    from .colours import named_colour
+
+    return named_colour(text, parameter)
 
 
 def clip_range(text, parameter):
@@ -113,13 +105,21 @@ def crop(text):
 
 
 def threshold(text):
-    """A threshold: a number, or ``"otsu"`` for :func:`voxrender.prep.otsu_threshold`.
+    """A threshold: a number, a window ``"lo:hi"`` (either side may be left open), or ``"otsu"`` for
+    :func:`voxrender.prep.otsu_threshold`.
 
-    >>> threshold("-300"), threshold("otsu").__name__
-    (-300.0, 'otsu_threshold')
+    >>> threshold("-300"), threshold("otsu").__name__, threshold("300:")
+    (-300.0, 'otsu_threshold', Window(lo=300.0, hi=None))
     """
     if str(text).strip().lower() == "otsu":
         return otsu_threshold
+    if ":" in str(text):
+        lo, _, hi = str(text).partition(":")
+        try:
+            return Window(float(lo) if lo.strip() else None, float(hi) if hi.strip() else None)
+        except ValueError:
+            raise InputError(f"{text!r} must be a window lo:hi of numbers (in stored units, HU for CT), "
+                             "either side may be left out", parameter="threshold") from None
     try:
         value = float(text)
     except (TypeError, ValueError):
@@ -128,6 +128,19 @@ def threshold(text):
         raise InputError(f"{text!r} must be a finite number (in stored units, HU for CT) or 'otsu'",
                          parameter="threshold")
     return value
+
+
+def labels(text):
+    """Labels ``"3,5,7"`` as a tuple of whole numbers.
+
+    >>> labels("3, 5")
+    (3, 5)
+    """
+    try:
+        values = tuple(int(part) for part in str(text).split(","))
+    except ValueError:
+        raise InputError(f"{text!r} must be labels separated by commas, e.g. 1,4,7", parameter="label") from None
+    return values
 
 
 def raw_layout(text):

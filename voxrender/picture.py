@@ -50,7 +50,12 @@ class RenderOptions:
     light : 3 floats
         Direction toward the light in image space (default: a headlight a little above and left).
     colour : 3 floats in [0, 1]
-        Colour of a fully lit surface.
+        Colour of a fully lit surface (a single object).
+    colours : dict, optional
+        ``{label: (name, (r, g, b))}`` for a multi-label object, ahead of the names and colours kept with it
+        (see :func:`voxrender.colours.label_colours`).
+    legend : bool
+        Draw the names and colours of the labels the picture shows.
     background : 3 ints in [0, 255]
     ao : bool
         Darken creases and pits by screen-space ambient occlusion.
@@ -68,6 +73,8 @@ class RenderOptions:
     shading: str = "gradient"
     light: tuple = HEADLIGHT
     colour: tuple = (1.0, 1.0, 1.0)
+    colours: dict | None = None
+    legend: bool = False
     background: tuple = (0, 0, 0)
     ao: bool = False
     orientation_marks: bool = False
@@ -100,10 +107,12 @@ class Outputs:
     stats_json: Path | None = None
     normals: Path | None = None
     normals_png: Path | None = None
+    labels_json: Path | None = None
+    label_png: Path | None = None
 
     def paths(self):
         return [p for p in (self.picture, self.depth, self.depth_png, self.stats_json, self.normals,
-                            self.normals_png) if p is not None]
+                            self.normals_png, self.labels_json, self.label_png) if p is not None]
 
     def check(self, options):
         """Refuse, before anything is rendered, an output that ``options`` cannot give: the normals are kept
@@ -114,13 +123,23 @@ class Outputs:
 
 @dataclass
 class Picture:
-    """A finished picture: ``rgb`` (H, W, 3) uint8, the :class:`DepthImage`, ``seconds`` by stage, and the
-    image-space ``normals`` (H, W, 3) it was lit with (NaN in the background)."""
+    """A finished picture: ``rgb`` (H, W, 3) uint8, the :class:`DepthImage`, ``seconds`` by stage, the
+    image-space ``normals`` (H, W, 3) it was lit with (NaN in the background), and for a multi-label object the
+    label image (uint16 (H, W), see :mod:`voxrender.labels`) and ``label_table``, ``{label: (name, (r, g, b))}``
+    of the labels it shows."""
 
     rgb: np.ndarray
     image: DepthImage
     seconds: dict
     normals: np.ndarray | None = None
+    labels: np.ndarray | None = None
+    label_table: dict | None = None
+
+    def visible_labels(self):
+        """``[{"label", "name", "colour", "pixels"}]`` of the labels the picture shows, by label."""
+        counts = self.image.stats.get("label_pixels", {})
+        return [{"label": label, "name": name, "colour": list(colour), "pixels": counts[str(label)]}
+                for label, (name, colour) in sorted(self.label_table.items()) if str(label) in counts]
 
 
 def picture(segments, view, options=None, progress=None, tree=None, normals=None):
@@ -153,6 +172,12 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
     options = options or RenderOptions()
     image = render(segments, view, options.method, progress, options.supersample, options.clip, options.fit,
                    tree, **options.method_options)
+    seconds = {"render": image.seconds}
+    colour, labels, table = options.colour, None, None
+    if segments.labels is not None:
+        started = time.perf_counter()
+        labels, table, colour = _label_colours(segments, image, options)
+        seconds["labels"] = time.perf_counter() - started
     started = time.perf_counter()
     normal_image = None
     if options.shading == "gradient":
@@ -160,13 +185,35 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
 
         normal_image = at_hits(image.depth, image.view, segments.shape, normals or kept(segments))
     occlusion = shade.ambient_occlusion(image.depth, image.view.scale) if options.ao else None
-    rgb = shade.shade(image.depth, options.shading, image.view.scale, options.light, options.colour,
+    rgb = shade.shade(image.depth, options.shading, image.view.scale, options.light, colour,
                       options.background, normal_image, occlusion)
     if options.orientation_marks:
         from .marks import draw_marks
 
         rgb = draw_marks(rgb, image.view)
-    return Picture(rgb, image, {"render": image.seconds, "shade": time.perf_counter() - started}, normal_image)
+    result = Picture(rgb, image, {**seconds, "shade": time.perf_counter() - started}, normal_image, labels, table)
+    if options.legend and table is not None:
+        from .marks import draw_legend
+
+        result.rgb = draw_legend(rgb, [(f"{v['label']} {v['name']}" if v["name"] != f"label {v['label']}" else
+                                        v["name"], v["colour"]) for v in result.visible_labels()])
+    return result
+
+
+def _label_colours(segments, image, options):
+    """The label image of a multi-label picture, its names and colours, and the colour of each pixel (H, W, 3)
+    in [0, 1]; the statistics gain the pixels of each label (``label_pixels``)."""
+    from .colours import label_colours
+    from .labels import label_image, label_pixels
+
+    labels = label_image(segments, image, options.clip)
+    image.stats["label_pixels"] = {str(k): v for k, v in label_pixels(labels).items()}
+    present = segments.meta.get("labels") or np.unique(np.asarray(segments.labels)).tolist()
+    table = label_colours(present, segments.meta.get("label_table"), options.colours)
+    lookup = np.zeros((max(present) + 1, 3), np.float32)
+    for label, (_, rgb) in table.items():
+        lookup[label] = np.asarray(rgb, np.float32) / 255
+    return labels, table, lookup[labels]
 
 
 def write_outputs(result, outputs, about=None):
@@ -177,6 +224,11 @@ def write_outputs(result, outputs, about=None):
     """
     if (outputs.normals is not None or outputs.normals_png is not None) and result.normals is None:
         raise InputError(NORMALS_NEED_GRADIENT, parameter="shading")
+    if result.labels is None:
+        for path, parameter in ((outputs.labels_json, "labels_out"), (outputs.label_png, "label_png")):
+            if path is not None:
+                raise InputError("the object has no labels to write; render a label map with --labels",
+                                 parameter=parameter)
     started = time.perf_counter()
     output.write_png(outputs.picture, result.rgb)
     if outputs.depth is not None:
@@ -187,6 +239,10 @@ def write_outputs(result, outputs, about=None):
         output.write_npy(outputs.normals, result.normals)
     if outputs.normals_png is not None:
         output.write_png(outputs.normals_png, shade.normals_to_rgb(result.normals))
+    if outputs.label_png is not None:
+        output.write_png(outputs.label_png, result.labels)
+    if outputs.labels_json is not None:
+        output.write_json(outputs.labels_json, {"labels": result.visible_labels()})
     result.seconds["write"] = time.perf_counter() - started
     result.seconds["total"] = sum(v for k, v in result.seconds.items() if k != "total")
     if outputs.stats_json is not None:

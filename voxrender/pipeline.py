@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 
@@ -42,13 +42,19 @@ class ReadOptions:
 
 @dataclass(frozen=True)
 class PrepOptions:
-    """How to turn values into a binary object (see :func:`voxrender.prep.binarize`)."""
+    """How to select the object (see :func:`voxrender.prep.binarize` and :func:`voxrender.prep.label_map`).
 
-    threshold: float | Callable = prep.otsu_threshold
+    ``threshold`` (a number, a :class:`~voxrender.prep.Window` or a function of the values) selects grey values;
+    ``labels`` selects labels of a label map: the input itself, or a map paired with it
+    (``labels.source``), and then an explicit ``threshold`` also applies to the input's grey values.
+    """
+
+    threshold: float | prep.Window | Callable | None = prep.otsu_threshold
     crop: tuple | None = None
     voxel: float | None = None
     resample: bool = True
     min_object: int = 0
+    labels: prep.LabelSelection | None = None
 
     def __post_init__(self):
         if self.voxel is not None and not (self.voxel > 0 and math.isfinite(self.voxel)):
@@ -116,16 +122,63 @@ def load_segments(path, read=None, prepare=None, progress=None):
         return Encoded(segments.load(path), {"load": time.perf_counter() - started, "prepare": 0.0})
     volume = read.read(path, progress)
     loaded = time.perf_counter()
-    mask, info = prep.binarize(volume, prepare.threshold, crop=prepare.crop, voxel=prepare.voxel,
-                               resample=prepare.resample, min_object=prepare.min_object, progress=progress)
-    meta = {"source": str(path), "threshold": info["threshold"], "voxel_mm": info["voxel"],
-            "input_shape": list(volume.shape), "input_spacing": list(volume.spacing)}
+    meta = {"source": str(path), "input_shape": list(volume.shape), "input_spacing": list(volume.spacing)}
     meta.update({k: v for k, v in volume.meta.items()
                  if k in ("format", "modality", "units", "series", "orientation", "orientation_from", "reoriented")})
-    encoded = segments.encode(mask, info["spacing"], meta)
-    encoded.normals = grey_normals(volume, mask, info, prepare)
+    if prepare.labels is None:
+        mask, info = prep.binarize(volume, prepare.threshold, crop=prepare.crop, voxel=prepare.voxel,
+                                   resample=prepare.resample, min_object=prepare.min_object, progress=progress)
+        encoded = segments.encode(mask, info["spacing"], {**meta, "threshold": info["threshold"],
+                                                          "voxel_mm": info["voxel"]})
+        encoded.normals = grey_normals(volume, mask, info, prepare)
+    else:
+        encoded = _encode_labels(volume, read, prepare, meta, progress)
     encoded.meta["normals_from"] = encoded.normals.source
     return Encoded(encoded, {"load": loaded - started, "prepare": time.perf_counter() - loaded})
+
+
+def _encode_labels(volume, read, prepare, meta, progress):
+    """The chosen labels of a label map (the input, or the map paired with it) as segments: one label per run
+    when each label is an object of its own, else one object."""
+    from .normals import surface_normals
+
+    selection = prepare.labels
+    label_volume = volume
+    if selection.source is not None:
+        label_volume = replace(read, format="auto", frame=None).read(selection.source)
+        if label_volume.shape != volume.shape:
+            raise InputError(f"the label map {selection.source} has shape {label_volume.shape[::-1]} (x, y, z) but "
+                             f"the image has {volume.shape[::-1]}; give the label map made from this image",
+                             parameter="labels_from")
+        meta["label_source"] = str(selection.source)
+    elif prepare.threshold is not None:
+        raise InputError("a label map is selected by its labels: drop --threshold, or pair the label map with its "
+                         "image by --labels-from", parameter="threshold")
+    # the label map lies on the image's grid: resample both with the image's spacing
+    labels, info = prep.label_map(replace(label_volume, spacing=volume.spacing), selection, crop=prepare.crop, voxel=prepare.voxel,
+                                  resample=prepare.resample)
+    meta.update(labels=info["labels"], voxel_mm=info["voxel"])
+    if selection.source is not None and prepare.threshold is not None:
+        mask, found = prep.binarize(volume, prepare.threshold, crop=prepare.crop, voxel=prepare.voxel,
+                                    resample=prepare.resample, progress=progress)
+        labels[~mask] = 0
+        meta["threshold"] = found["threshold"]
+        if not labels.any():
+            raise InputError("no labelled voxel passes the threshold; choose another threshold or labels",
+                             parameter="threshold")
+    if prepare.min_object > 1:
+        from skimage.morphology import remove_small_objects
+
+        labels[~remove_small_objects(labels > 0, max_size=prepare.min_object - 1, connectivity=3)] = 0
+    if selection.separate:
+        table = label_volume.meta.get("label_table")
+        if table:
+            meta["label_table"] = {k: v for k, v in table.items() if int(k) in info["labels"]}
+        encoded = segments.encode_labels(labels, info["spacing"], meta)
+    else:
+        encoded = segments.encode(labels > 0, info["spacing"], meta)
+    encoded.normals = surface_normals(labels > 0)
+    return encoded
 
 
 def grey_normals(volume, mask, info, prepare):

@@ -7,12 +7,52 @@ mask (one byte a voxel) and two interpolated slices are held besides the input.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from .errors import InputError
 
-__all__ = ["crop", "resampled_shape", "resample_slices", "resample", "otsu_threshold", "binarize"]
+__all__ = ["crop", "resampled_shape", "resample_slices", "resample", "otsu_threshold", "Window", "binarize",
+           "LabelSelection", "label_map"]
+
+
+@dataclass(frozen=True)
+class Window:
+    """A value window: the object is ``lo <= value <= hi``; ``None`` leaves a side open.
+
+    >>> Window(-100, 300).select(np.array([-200, 0, 300, 400])).tolist()
+    [False, True, True, False]
+    """
+
+    lo: float | None = None
+    hi: float | None = None
+
+    def __post_init__(self):
+        for bound in (self.lo, self.hi):
+            if bound is not None and not math.isfinite(bound):
+                raise InputError(f"{bound} must be a finite number (in stored units, HU for CT)",
+                                 parameter="threshold")
+        if self.lo is None and self.hi is None:
+            raise InputError("a window needs at least one bound, as in 300: or :1000 or 300:1000",
+                             parameter="threshold")
+        if None not in (self.lo, self.hi) and self.lo > self.hi:
+            raise InputError(f"window {self.lo:g}:{self.hi:g} is empty: lo is above hi; give lo:hi with lo <= hi",
+                             parameter="threshold")
+
+    def select(self, values, out=None):
+        """``lo <= values <= hi`` as a bool array (into ``out`` when given)."""
+        inside = np.ones(np.shape(values), bool) if out is None else out
+        if self.lo is not None:
+            np.greater_equal(values, self.lo, out=inside)
+        else:
+            inside[...] = True
+        if self.hi is not None:
+            inside &= np.less_equal(values, self.hi)
+        return inside
+
+    def __str__(self):
+        return f"{'' if self.lo is None else f'{self.lo:g}'}:{'' if self.hi is None else f'{self.hi:g}'}"
 
 
 def crop(values, region=None):
@@ -135,9 +175,10 @@ def binarize(volume, threshold=otsu_threshold, *, crop=None, voxel=None, resampl
     Parameters
     ----------
     volume : Volume
-    threshold : float or callable
-        Voxels with value ``>= threshold`` (stored units) belong to the object; a callable is given the
-        (cropped) values and returns the threshold, like the default :func:`otsu_threshold`.
+    threshold : float, Window or callable
+        Voxels with value ``>= threshold`` (stored units) belong to the object, or those inside a
+        :class:`Window`; a callable is given the (cropped) values and returns the threshold, like the
+        default :func:`otsu_threshold`.
     crop : tuple of 3 slices, optional
         The ``(z, y, x)`` subregion in input voxel indices (see :func:`crop`).
     voxel : float, optional
@@ -151,7 +192,7 @@ def binarize(volume, threshold=otsu_threshold, *, crop=None, voxel=None, resampl
     -------
     mask : ndarray of bool, ``[z, y, x]``
     info : dict
-        ``threshold`` (the number used), ``voxel`` (mm), ``spacing`` of the mask.
+        ``threshold`` (the number used, or the window as text), ``voxel`` (mm), ``spacing`` of the mask.
 
     Examples
     --------
@@ -164,29 +205,128 @@ def binarize(volume, threshold=otsu_threshold, *, crop=None, voxel=None, resampl
     values = _crop(volume.values, crop)
     if callable(threshold):
         threshold = threshold(values)
-    if not math.isfinite(threshold):
-        raise InputError(f"{threshold} must be a finite number", parameter="threshold")
+    window = threshold if isinstance(threshold, Window) else Window(float(threshold))
+    voxel, out_shape = _grid(values.shape, volume.spacing, voxel, resample)
     spacing = tuple(float(s) for s in volume.spacing)
-    if voxel is not None and not (voxel > 0 and math.isfinite(voxel)):
-        raise InputError(f"{voxel} must be a positive size in mm", parameter="voxel")
-    voxel = float(voxel or min(spacing))
-    if resample and not all(math.isclose(s, voxel) for s in spacing):
-        out_shape = resampled_shape(values.shape, spacing, voxel)
-        if math.prod(out_shape) > 4e9:
-            raise InputError(f"resampling to {voxel:g} mm voxels would give {out_shape[::-1]} voxels; "
-                             "choose a larger voxel or crop a subregion", parameter="voxel")
+    if out_shape is not None:
         mask = np.empty(out_shape, bool)
         for k, plane in enumerate(resample_slices(values, spacing, voxel, progress)):
-            np.greater_equal(plane, threshold, out=mask[k])
+            window.select(plane, out=mask[k])
         spacing = (voxel, voxel, voxel)
     else:
-        mask = values >= threshold
+        mask = window.select(values)
     if min_object > 1:
         from skimage.morphology import remove_small_objects
 
         mask = remove_small_objects(mask, max_size=int(min_object) - 1, connectivity=3)
     if not mask.any():
         low, high = np.min(values), np.max(values)
-        raise InputError(f"threshold {threshold:g} leaves no object voxel: values range from {low:g} to "
+        what = f"window {window}" if isinstance(threshold, Window) else f"threshold {window.lo:g}"
+        raise InputError(f"{what} leaves no object voxel: values range from {low:g} to "
                          f"{high:g}; choose a threshold in that range", parameter="threshold")
-    return mask, {"threshold": float(threshold), "voxel": voxel, "spacing": spacing}
+    return mask, {"threshold": str(threshold) if isinstance(threshold, Window) else window.lo, "voxel": voxel,
+                  "spacing": spacing}
+
+
+def _grid(shape, spacing, voxel, resample):
+    """The cubic voxel size (mm) and the shape of the resampled grid (``None`` when the input grid is kept)."""
+    if voxel is not None and not (voxel > 0 and math.isfinite(voxel)):
+        raise InputError(f"{voxel} must be a positive size in mm", parameter="voxel")
+    voxel = float(voxel or min(spacing))
+    if not resample or all(math.isclose(s, voxel) for s in spacing):
+        return voxel, None
+    out_shape = resampled_shape(shape, spacing, voxel)
+    if math.prod(out_shape) > 4e9:
+        raise InputError(f"resampling to {voxel:g} mm voxels would give {out_shape[::-1]} voxels; "
+                         "choose a larger voxel or crop a subregion", parameter="voxel")
+    return voxel, out_shape
+
+
+@dataclass(frozen=True)
+class LabelSelection:
+    """Which labels of a label map make the object.
+
+    Parameters
+    ----------
+    chosen : tuple of int, optional
+        The labels to keep (default: every non-zero label).
+    separate : bool
+        Each label an object of its own (a multi-label picture), or all chosen labels one object.
+    source : path, optional
+        A label map paired with the input (a CT and its segmentation); default: the input is the label map.
+    """
+
+    chosen: tuple | None = None
+    separate: bool = True
+    source: object = None
+
+    def __post_init__(self):
+        if self.chosen is not None:
+            if not self.chosen or not all(isinstance(v, (int, np.integer)) and 0 < v < 65536 for v in self.chosen):
+                raise InputError(f"{self.chosen!r}: labels are whole numbers from 1 to 65535", parameter="label")
+
+
+def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
+    """The chosen labels of a label map, cropped and resampled (nearest neighbour) to cubic voxels.
+
+    Parameters
+    ----------
+    volume : Volume
+        Integer labels, 0 for the background.
+    selection : LabelSelection, optional
+    crop, voxel, resample
+        As for :func:`binarize`, so that a label map and its CT give the same grid.
+
+    Returns
+    -------
+    labels : ndarray of uint16, ``[z, y, x]``
+        The chosen labels; 0 elsewhere (and everywhere, with ``separate=False``, the object is ``labels > 0``).
+    info : dict
+        ``labels`` (the chosen labels present), ``voxel`` (mm), ``spacing``.
+
+    Examples
+    --------
+    >>> from voxrender.io import Volume
+    >>> values = np.zeros((2, 3, 3), np.int16); values[:, 1, 1] = 7; values[:, 2, 2] = 9
+    >>> labels, info = label_map(Volume(values, (1, 1, 1)), LabelSelection(chosen=(9,)))
+    >>> int(labels.sum()), info["labels"]
+    (18, [9])
+    """
+    selection = selection or LabelSelection()
+    values = _crop(volume.values, crop)
+    check_labels(values)
+    present = np.unique(np.asarray(values)).astype(np.int64)
+    present = present[present != 0]
+    chosen = present if selection.chosen is None else np.asarray(sorted(set(selection.chosen)))
+    missing = np.setdiff1d(chosen, present)
+    if len(missing) or not len(chosen):
+        shown = ", ".join(str(v) for v in present[:30]) + (" ..." if len(present) > 30 else "")
+        raise InputError(f"label {', '.join(str(v) for v in missing) or 'of any kind'} is not in the label map; "
+                         f"it holds {shown or 'only 0 (background)'}", parameter="label")
+    voxel, out_shape = _grid(values.shape, volume.spacing, voxel, resample)
+    spacing = tuple(float(s) for s in volume.spacing)
+    if out_shape is not None:
+        # the input voxel nearest each grid point (labels cannot be interpolated)
+        nearest = [np.minimum(np.rint(np.arange(n) * voxel / s).astype(np.int64), m - 1)
+                   for n, s, m in zip(out_shape, spacing[::-1], values.shape)]
+        values = np.asarray(values)[np.ix_(*nearest)]
+        spacing = (voxel, voxel, voxel)
+    labels = np.where(np.isin(values, chosen), values, 0).astype(np.uint16)
+    if not labels.any():
+        raise InputError("the chosen labels vanish at this voxel size; choose a smaller --voxel", parameter="voxel")
+    return labels, {"labels": [int(v) for v in chosen], "voxel": voxel, "spacing": spacing}
+
+
+def check_labels(values):
+    """Refuse values that are not a label map: non-integers, negatives, labels above 65535."""
+    values = np.asarray(values)
+    if values.dtype.kind == "f":
+        fractional = values[~(values == np.round(values))]           # NaN and inf too
+        if fractional.size:
+            raise InputError(f"this is not a label map: it holds non-integer values such as {fractional.flat[0]:g}; "
+                             "give a label map (whole numbers), or --threshold for grey values", parameter="label")
+    elif values.dtype.kind not in "uib":
+        raise InputError(f"a label map must hold whole numbers, not {values.dtype}", parameter="label")
+    if values.size and (np.min(values) < 0 or np.max(values) > 65535):
+        raise InputError(f"labels must lie in 0..65535; this map holds {np.min(values):g}..{np.max(values):g}",
+                         parameter="label")

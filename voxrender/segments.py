@@ -6,6 +6,10 @@ indexed by ``offsets``: the runs of row ``r = z * ny + y`` are
 begins, so ``offsets`` is both the per-slice and the per-row index of the
 paper's Fig. 7.
 
+A multi-label object (:func:`encode_labels`) also has ``labels``, one label per run: a run ends where its
+label changes, so runs of different labels may touch.  Renderers see only the runs; the label of what a pixel
+shows is looked up afterwards (:mod:`voxrender.labels`).
+
 The ``.vxs`` file is that structure on disk: a magic line, a JSON header, then
 the three arrays at 64-byte aligned offsets.  :func:`load` memory-maps it, so a
 slice or a row is read without reading the rest.
@@ -22,7 +26,7 @@ import numpy as np
 from .errors import InputError
 from .output import atomic_output
 
-__all__ = ["Segments", "encode", "save", "load"]
+__all__ = ["Segments", "encode", "encode_labels", "save", "load"]
 
 MAGIC = b"VOXRENDER-SEGMENTS 1\n"
 _ALIGN = 64
@@ -52,6 +56,8 @@ class Segments:
     spacing: tuple[float, float, float] = (1.0, 1.0, 1.0)
     meta: dict = field(default_factory=dict)
     normals: object = field(default=None, repr=False, compare=False)   # SurfaceNormals, kept in the .vxs
+    labels: np.ndarray | None = field(default=None, repr=False)      # uint16, one per run (multi-label objects)
+
     @property
     def segment_count(self):
         return int(self.offsets[-1])
@@ -86,6 +92,24 @@ class Segments:
         """The whole mask ``[z, y, x]``."""
         return np.stack([self.slice_mask(z) for z in range(self.shape[0])]) if self.shape[0] else \
             np.zeros(self.shape, bool)
+
+    def only(self, labels):
+        """The runs of ``labels`` (a label or several) as a single object of the same grid.
+
+        >>> s = encode_labels(np.array([[[0, 2, 2, 5, 0, 5]]]))
+        >>> s.only(5).starts.tolist(), s.only(5).labels
+        ([3, 5], None)
+        """
+        keep = np.isin(np.asarray(self.labels), np.atleast_1d(labels))
+        counts = np.add.reduceat(np.append(keep, False).astype(np.int64), np.asarray(self.offsets)[:-1]) \
+            if len(keep) else np.zeros(len(self.offsets) - 1, np.int64)
+        counts[np.diff(np.asarray(self.offsets)) == 0] = 0             # reduceat gives an empty row one element
+        offsets = np.zeros(len(self.offsets), np.int64)
+        np.cumsum(counts, out=offsets[1:])
+        meta = {k: v for k, v in self.meta.items() if k != "label_table"}
+        meta["labels"] = [int(v) for v in np.atleast_1d(labels)]
+        return Segments(self.shape, np.asarray(self.starts)[keep], np.asarray(self.ends)[keep], offsets,
+                        self.spacing, meta, self.normals)
 
     def bounding_box(self):
         """``((z0, z1), (y0, y1), (x0, x1))`` inclusive, or ``None`` for an empty object."""
@@ -138,10 +162,44 @@ def encode(mask, spacing=(1.0, 1.0, 1.0), meta=None):
                     tuple(float(s) for s in spacing), dict(meta or {}))
 
 
+def encode_labels(label_map, spacing=(1.0, 1.0, 1.0), meta=None):
+    """Run-length encode a label map ``[z, y, x]`` (0: background) into :class:`Segments` with one label per run.
+
+    A run is a maximal stretch of one non-zero label along x, so that runs of different labels may touch.
+
+    Examples
+    --------
+    >>> s = encode_labels(np.array([[[0, 2, 2, 5, 0, 5]]]))
+    >>> s.starts.tolist(), s.ends.tolist(), s.labels.tolist()
+    ([1, 3, 5], [2, 3, 5], [2, 5, 5])
+    """
+    values = np.asarray(label_map)
+    if values.ndim != 3:
+        raise InputError(f"a label map must be 3-D [z, y, x], got shape {values.shape}")
+    nz, ny, nx = values.shape
+    padded = np.zeros((nz * ny, nx + 2), np.uint16)
+    padded[:, 1:-1] = values.reshape(nz * ny, nx)
+    # every place where a voxel differs from its left neighbour begins a stretch that lasts to the next one
+    flat = padded[:, 1:]
+    bounds = np.flatnonzero(flat != padded[:, :-1])
+    rows, columns = np.divmod(bounds, nx + 1)
+    labels = flat.ravel()[bounds]
+    ends = np.append(bounds[1:], bounds[-1] + 1 if len(bounds) else 0) - 1 - rows * (nx + 1)
+    kept = labels != 0                      # a non-zero stretch always ends within its row (the padding is 0)
+    offsets = np.zeros(nz * ny + 1, np.int64)
+    np.cumsum(np.bincount(rows[kept], minlength=nz * ny), out=offsets[1:])
+    result = Segments((nz, ny, nx), columns[kept].astype(np.int32), ends[kept].astype(np.int32), offsets,
+                      tuple(float(s) for s in spacing), dict(meta or {}))
+    result.labels = labels[kept].astype(np.uint16)
+    return result
+
+
 def save(segments, path):
     """Write ``segments`` to a ``.vxs`` file (atomically)."""
     arrays = {"offsets": np.asarray(segments.offsets, "<i8"), "starts": np.asarray(segments.starts, "<i4"),
               "ends": np.asarray(segments.ends, "<i4")}
+    if segments.labels is not None:
+        arrays["labels"] = np.asarray(segments.labels, "<u2")
     meta = dict(segments.meta)
     if segments.normals is not None:
         arrays.update(normal_index=np.asarray(segments.normals.index, "<i8"),
@@ -199,5 +257,8 @@ def load(path):
 
         normals = SurfaceNormals(shape, arrays["normal_index"], arrays["normal_packed"].reshape(-1, 2),
                                  meta.get("normals_from", "grey values"))
+    labels = arrays.get("labels")           # single-object files have none
+    if labels is not None and labels.size != arrays["starts"].size:
+        raise InputError(f"{path} is a damaged .vxs file (runs and labels disagree); encode it again")
     return Segments(shape, arrays["starts"], arrays["ends"], arrays["offsets"], tuple(header["spacing"]), meta,
-                    normals)
+                    normals, labels)

@@ -224,6 +224,20 @@ class View:
         return ((columns + 0.5 - width / 2) / self.scale + self.centre[0],
                 (rows + 0.5 - height / 2) / self.scale + self.centre[1])
 
+    def hit_points(self, depth, shape, beyond=0.0):
+        """Where each covered pixel's ray meets the object: ``(rows, columns, points)``, ``points`` ``(N, 3)``
+        object ``(x, y, z)`` at depth ``depth + beyond`` (float64), for a depth image of this view.
+
+        >>> view = View(size=(1, 2), scale=1.0)
+        >>> rows, columns, points = view.hit_points(np.array([[np.inf, -0.5]], np.float32), (1, 1, 1))
+        >>> columns.tolist(), points.tolist()
+        ([1], [[0.5, 0.0, -0.5]])
+        """
+        rows, columns = np.nonzero(np.isfinite(depth))
+        xs, ys = self.pixel_centres(columns, rows)
+        zs = depth[rows, columns].astype(np.float64) + beyond
+        return rows, columns, np.stack(self.to_object(xs, ys, zs, shape), axis=-1).reshape(-1, 3)
+
     def pixel_index(self, x, y):
         """Continuous ``(column, row)`` of image points ``(X', Y')``: whole numbers at pixel centres.
 

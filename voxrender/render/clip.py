@@ -78,14 +78,18 @@ class Clip:
                     ends = np.minimum(ends, np.floor(bound + 1e-9).astype(np.int64))
         return keep & (starts <= ends), starts, ends
 
-    def apply_mask(self, mask, view):
-        """The voxels of ``mask[z, y, x]`` that survive the clip, as a new mask (for references and tests)."""
-        z, y, x = np.indices(mask.shape)
-        keep = mask.copy()
+    def keeps(self, x, y, z, view, shape):
+        """Whether the voxels at integer ``(x, y, z)`` of a ``shape = (nz, ny, nx)`` volume survive the clip."""
+        keep = np.ones(np.broadcast(x, y, z).shape, bool)
         for bounds, index in ((self.x, x), (self.y, y), (self.z, z)):
             if bounds is not None:
                 lo, hi = bounds
                 keep &= (index >= (lo if lo is not None else 0)) & (index < (hi if hi is not None else 1 << 62))
         if self.cut_depth is not None:
-            keep &= view.to_image(x, y, z, mask.shape)[2] >= self.cut_depth - 1e-9
+            keep &= view.to_image(x, y, z, shape)[2] >= self.cut_depth - 1e-9
         return keep
+
+    def apply_mask(self, mask, view):
+        """The voxels of ``mask[z, y, x]`` that survive the clip, as a new mask (for references and tests)."""
+        z, y, x = np.indices(mask.shape)
+        return mask & self.keeps(x, y, z, view, mask.shape)
