@@ -132,3 +132,17 @@ def agreement(depth, reference, tolerance=1e-5):
     both = a & b
     close = np.abs(depth[both] - reference[both]) <= tolerance
     return float(iou), float(close.mean()) if both.any() else 1.0
+
+
+def exact_labels(labels, alpha, beta, gamma, size, scale, middle=(0.0, 0.0)):
+    """The contract's label image ``(H, W)`` of a label map ``labels[z, y, x]``: the label of the cube each ray
+    meets first, the smallest of those met at the same depth, 0 where it meets nothing."""
+    pixels, near, _, owners, voxels = hits(labels > 0, alpha, beta, gamma, size, scale, middle=middle)
+    nearest = np.full(size[0] * size[1], np.inf)
+    np.minimum.at(nearest, pixels, near)
+    first = near <= nearest[pixels] + 1e-9
+    found = np.full(size[0] * size[1], np.iinfo(np.int64).max)
+    x, y, z = voxels[owners[first]].T
+    np.minimum.at(found, pixels[first], labels[z, y, x].astype(np.int64))
+    found[np.isinf(nearest)] = 0
+    return found.reshape(size)

@@ -176,12 +176,17 @@ def expand_inputs(patterns):
 def unique_names(paths):
     """A short, distinct name per input: its folder or file name, numbered when two are the same.
 
-    >>> unique_names(["a/ct", "b/ct", "c/head.mha"])
-    ['ct', 'ct-2', 'head']
+    >>> unique_names(["a/ct", "b/ct", "c/head.mha", "d/ct.nii.gz"])
+    ['ct', 'ct-2', 'head', 'ct-3']
     """
     names, seen = [], {}
     for path in paths:
-        base = Path(path).name if Path(path).is_dir() or not Path(path).suffix else Path(path).stem
+        base = Path(path).name
+        if not Path(path).is_dir():
+            for suffix in (".nii.gz", ".seg.nrrd", Path(path).suffix):
+                if suffix and base.lower().endswith(suffix):
+                    base = base[:-len(suffix)]
+                    break
         base = base or "input"
         seen[base] = seen.get(base, 0) + 1
         names.append(base if seen[base] == 1 else f"{base}-{seen[base]}")
@@ -480,7 +485,7 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
         for index, view in enumerate(item.views):
             output = item.output(out_dir, view, index)
             if is_done(output, item.options.size):
-                rows[(item.input, view.label)] = {
+                rows[(item.name, view.label)] = {
                     "input": item.input, "name": item.name, "view": view.label, "alpha": view.alpha,
                     "beta": view.beta, "gamma": view.gamma, "method": item.method, "output": str(output),
                     "status": "done earlier", "error": ""}
@@ -498,7 +503,7 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
                 bar.update(1)
             if "error" in report:
                 for index, view in views:
-                    rows[(item.input, view.label)] = {
+                    rows[(item.name, view.label)] = {
                         "input": item.input, "name": item.name, "view": view.label, "alpha": view.alpha,
                         "beta": view.beta, "gamma": view.gamma, "method": item.method,
                         "output": str(item.output(out_dir, view, index)), "status": "failed",
@@ -511,14 +516,14 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
                                            report["seconds"]))
         for future in pool.as_completed(renders):
             row = future.result()
-            rows[(row["input"], row["view"])] = row
+            rows[(row["name"], row["view"])] = row
             if bar:
                 bar.update(1)
     finally:
         pool.close()
         if bar:
             bar.close()
-    ordered = [rows[(item.input, view.label)] for item in items for view in item.views]
+    ordered = [rows[(item.name, view.label)] for item in items for view in item.views]
     for kind in animations:
         for item in items:
             _animate(item, out_dir, kind, fps, ordered)
@@ -560,7 +565,7 @@ def _animate(item, out_dir, kind, fps, rows):
     """Every view of ``item`` as one animation (only when all its pictures exist)."""
     import imageio.v3 as iio
 
-    frames = [r["output"] for r in rows if r["input"] == item.input and r["status"] in ("ok", "done earlier")]
+    frames = [r["output"] for r in rows if r["name"] == item.name and r["status"] in ("ok", "done earlier")]
     if len(frames) != len(item.views) or len(frames) < 2:
         return
     target = Path(out_dir) / f"{item.name}.{kind}"
@@ -603,12 +608,12 @@ def _write_sheet(path, items, rows):
 
     from .sheet import sheet
 
-    by_key = {(row["input"], row["view"]): row for row in rows}
+    by_key = {(row["name"], row["view"]): row for row in rows}
     pictures, captions = [], []
     for item in items:
         row_pictures, row_captions = [], []
         for view in item.views:
-            row = by_key[(item.input, view.label)]
+            row = by_key[(item.name, view.label)]
             if row["status"] in ("ok", "done earlier"):
                 row_pictures.append(iio.imread(row["output"]))
             else:

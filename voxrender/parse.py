@@ -116,10 +116,11 @@ def threshold(text):
     if ":" in str(text):
         lo, _, hi = str(text).partition(":")
         try:
-            return Window(float(lo) if lo.strip() else None, float(hi) if hi.strip() else None)
+            bounds = tuple(float(v) if v.strip() else None for v in (lo, hi))
         except ValueError:
             raise InputError(f"{text!r} must be a window lo:hi of numbers (in stored units, HU for CT), "
                              "either side may be left out", parameter="threshold") from None
+        return Window(*bounds)
     try:
         value = float(text)
     except (TypeError, ValueError):

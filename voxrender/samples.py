@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["SAMPLES", "SAMPLE_THRESHOLD", "sphere", "torus", "shell", "staircase", "cylinder", "STAIRCASE_VOXELS"]
+__all__ = ["SAMPLES", "SAMPLE_THRESHOLD", "sphere", "torus", "shell", "staircase", "cylinder", "STAIRCASE_VOXELS",
+           "TISSUES", "tissue_labels"]
 
 AIR, OBJECT = 40, 1040
 SAMPLE_THRESHOLD = 500
@@ -119,3 +120,28 @@ def cylinder(n=64, radius=None, axis=(0.25, 0.15, 0.8)):
 
 
 SAMPLES = {"sphere": sphere, "torus": torus, "shell": shell, "staircase": staircase, "cylinder": cylinder}
+
+
+TISSUES = {1: ("bone", 300, None), 2: ("soft tissue", -300, 300), 3: ("airway", None, -300)}
+
+
+def tissue_labels(hu):
+    """A label map of a CT by Hounsfield ranges: 1 bone (from 300 HU), 2 soft tissue (-300 to 300 HU), 3 airway
+    (below -300 HU and enclosed by the body: air not connected to the volume's border).
+
+    A stand-in for a segmentation tool's output, made from the CT itself, for tests and examples.
+
+    >>> hu = np.full((5, 5, 5), -1000); hu[1:4, 1:4, 1:4] = 40; hu[2, 2, 2] = -900; hu[1, 1, 1] = 700
+    >>> np.bincount(tissue_labels(hu).ravel()).tolist()
+    [98, 1, 25, 1]
+    """
+    from scipy import ndimage
+
+    hu = np.asarray(hu)
+    labels = np.zeros(hu.shape, np.uint8)
+    labels[(hu >= -300) & (hu < 300)] = 2
+    labels[hu >= 300] = 1
+    air, count = ndimage.label(hu < -300)
+    border = np.unique(np.concatenate([air[[0, -1]].ravel(), air[:, [0, -1]].ravel(), air[:, :, [0, -1]].ravel()]))
+    labels[(air > 0) & ~np.isin(air, border)] = 3
+    return labels

@@ -1,0 +1,175 @@
+"""Segmentations in colour through the commands: label maps, windows, presets, colour tables, legends, batch."""
+
+import csv
+import json
+
+import imageio.v3 as iio
+import nrrd
+import numpy as np
+import pytest
+
+from test_cli import assert_bad_input, run
+from test_labels import nested
+from voxrender.output import write_nifti
+from voxrender.colours import PRESETS, palette
+
+
+@pytest.fixture
+def label_file(tmp_path):
+    return write_nifti(tmp_path / "seg.nii.gz", nested())
+
+
+@pytest.fixture
+def ct_file(tmp_path):
+    """A CT-like image of the same grid: 1000 inside every label, 0 outside; the box is denser (1500)."""
+    labels = nested()
+    values = np.where(labels > 0, 1000, 0).astype(np.int16)
+    values[labels == 3] = 1500
+    return write_nifti(tmp_path / "ct.nii.gz", values)
+
+
+def colours_of(picture):
+    """The distinct colours of a picture's brightest pixels, as hue directions (brightness removed)."""
+    rgb = picture.reshape(-1, 3).astype(float)
+    lit = rgb[rgb.sum(axis=1) > 60]
+    return lit / lit.sum(axis=1, keepdims=True)
+
+
+def test_labels_render_in_their_colours_with_every_output(tmp_path, label_file):
+    out = tmp_path / "l.png"
+    result = run("render", label_file, "--labels", "--size", "64", "--view", "left",
+                 "--labels-out", tmp_path / "l.json", "--label-png", tmp_path / "l16.png",
+                 "--stats-json", tmp_path / "s.json", "-o", out)
+    assert result.exit_code == 0, result.output
+    listed = json.loads((tmp_path / "l.json").read_text())["labels"]
+    label_png = iio.imread(tmp_path / "l16.png")
+    assert label_png.dtype == np.uint16 and set(np.unique(label_png)) - {0} == {v["label"] for v in listed}
+    for entry in listed:
+        assert entry["pixels"] == int((label_png == entry["label"]).sum())
+        assert tuple(entry["colour"]) == palette([entry["label"]])[entry["label"]]
+        assert entry["name"] == f"label {entry['label']}"
+    stats = json.loads((tmp_path / "s.json").read_text())
+    assert stats["stats"]["label_pixels"] == {str(v["label"]): v["pixels"] for v in listed}
+    picture = iio.imread(out)
+    assert picture.ndim == 3                                  # in colour
+    for entry in listed:                                      # each label's pixels have its hue
+        hue = np.array(entry["colour"], float) / sum(entry["colour"])
+        shown = picture[(label_png == entry["label"]) & (picture.sum(axis=2) > 60)].astype(float)
+        assert np.abs(shown / shown.sum(axis=1, keepdims=True) - hue).max() < 0.05
+    result = run("render", label_file, "--labels", "--size", "64", "--view", "left", "--legend", "-o",
+                 tmp_path / "legend.png")
+    assert result.exit_code == 0, result.output
+    legend = iio.imread(tmp_path / "legend.png")
+    changed = np.nonzero((legend != picture).any(axis=2))
+    assert changed[0].min() >= 64 - 7 - 12 * len(listed)                    # a band at the bottom
+    for entry in listed:                                            # a swatch of each label's colour
+        assert (legend == entry["colour"]).all(axis=2).sum() >= 9 * 9
+
+
+def test_a_colour_table_names_the_labels(tmp_path, label_file):
+    (tmp_path / "t.csv").write_text("label,name,r,g,b\n2,ball,10,200,10\n3,box,200,10,10\n")
+    result = run("render", label_file, "--labels", "--colours", tmp_path / "t.csv", "--size", "48",
+                 "--labels-out", tmp_path / "l.json", "-o", tmp_path / "l.png")
+    assert result.exit_code == 0, result.output
+    listed = {v["label"]: v for v in json.loads((tmp_path / "l.json").read_text())["labels"]}
+    assert listed[2]["name"] == "ball" and listed[3]["colour"] == [200, 10, 10]
+
+
+def test_label_picks_labels_as_one_object_in_one_colour(tmp_path, label_file):
+    result = run("render", label_file, "--label", "3", "--colour", "#ff0000", "--size", "48", "-o", tmp_path / "a.png")
+    assert result.exit_code == 0, result.output
+    picture = iio.imread(tmp_path / "a.png")
+    lit = picture[picture.sum(axis=2) > 0]
+    assert len(lit) and (lit[:, 1] == 0).all() and (lit[:, 2] == 0).all()
+    result = run("render", label_file, "--label", "2,3", "--labels", "--size", "48", "--labels-out",
+                 tmp_path / "l.json", "-o", tmp_path / "b.png")
+    assert result.exit_code == 0, result.output
+    assert {v["label"] for v in json.loads((tmp_path / "l.json").read_text())["labels"]} <= {2, 3}
+
+
+def test_a_ct_with_its_label_map(tmp_path, ct_file, label_file):
+    """--labels-from pairs a CT with its labels; a threshold then also selects the CT's values."""
+    result = run("render", ct_file, "--labels-from", label_file, "--size", "48", "--labels-out",
+                 tmp_path / "all.json", "-o", tmp_path / "all.png")
+    assert result.exit_code == 0, result.output
+    result = run("render", ct_file, "--labels-from", label_file, "--threshold", "1200", "--size", "48",
+                 "--labels-out", tmp_path / "dense.json", "-o", tmp_path / "dense.png")
+    assert result.exit_code == 0, result.output
+    assert [v["label"] for v in json.loads((tmp_path / "dense.json").read_text())["labels"]] == [3]
+
+
+def test_windows_and_presets(tmp_path, ct_file):
+    for args in (["--threshold", "500:1200"], ["--threshold", ":1200"], ["--preset", "bone"]):
+        result = run("render", ct_file, *args, "--size", "32", "-o", tmp_path / "w.png", "--stats-json",
+                     tmp_path / "w.json")
+        assert result.exit_code == 0, (args, result.output)
+    picture = iio.imread(tmp_path / "w.png")
+    lit = picture[picture.sum(axis=2) > 120].astype(float)
+    bone = np.array(PRESETS["bone"].colour, float)
+    assert np.abs(lit / lit.sum(axis=1, keepdims=True) - bone / bone.sum()).max() < 0.05
+    result = run("presets")
+    assert result.exit_code == 0 and all(name in result.output for name in PRESETS)
+    assert "300: HU" in result.output
+
+
+def test_encoded_labels_keep_their_colours(tmp_path, label_file):
+    (tmp_path / "t.json").write_text(json.dumps({"3": {"name": "box", "colour": [1, 2, 250]}}))
+    result = run("encode", label_file, "--labels", "-o", tmp_path / "l.vxs")
+    assert result.exit_code == 0 and "3 labels" in result.output, result.output
+    result = run("render", tmp_path / "l.vxs", "--colours", tmp_path / "t.json", "--size", "40",
+                 "--labels-out", tmp_path / "l.json", "-o", tmp_path / "l.png")
+    assert result.exit_code == 0, result.output
+    assert {v["label"]: v["name"] for v in json.loads((tmp_path / "l.json").read_text())["labels"]}[3] == "box"
+
+
+def test_seg_nrrd_names_and_colours(tmp_path):
+    header = {"space": "left-posterior-superior", "space directions": np.eye(3), "encoding": "raw",
+              "Segment0_Name": "ball", "Segment0_Color": "0 1 0", "Segment0_LabelValue": "2",
+              "Segment0_Layer": "0", "Segment1_Name": "box", "Segment1_Color": "1 0 0",
+              "Segment1_LabelValue": "3", "Segment1_Layer": "0"}
+    nrrd.write(str(tmp_path / "s.seg.nrrd"), np.ascontiguousarray(nested()), header, index_order="C")
+    result = run("render", tmp_path / "s.seg.nrrd", "--labels", "--size", "48", "--labels-out",
+                 tmp_path / "l.json", "-o", tmp_path / "l.png")
+    assert result.exit_code == 0, result.output
+    listed = {v["label"]: v for v in json.loads((tmp_path / "l.json").read_text())["labels"]}
+    assert listed[2]["name"] == "ball" and listed[2]["colour"] == [0, 255, 0]
+    assert listed[3]["name"] == "box" and listed[3]["colour"] == [255, 0, 0]
+
+
+def test_bad_label_inputs_end_in_one_line(tmp_path, label_file, ct_file):
+    out = tmp_path / "out.png"
+    fractional = write_nifti(tmp_path / "f.nii.gz", nested().astype(np.float32) * 0.5)
+    small = write_nifti(tmp_path / "small.nii.gz", nested()[:, :, :10])
+    (tmp_path / "bad.csv").write_text("label,name,r,g,b\n2,ball,10,200,10\n3,box,red,0,0\n")
+    cases = [
+        (["render", fractional, "--labels"], ["--label", "non-integer", "0.5"]),
+        (["render", label_file, "--label", "9"], ["--label", "9", "holds 1, 2, 3"]),
+        (["render", label_file, "--labels", "--colours", tmp_path / "bad.csv"], ["--colours", "row 3"]),
+        (["render", ct_file, "--threshold", "900:100"], ["--threshold", "lo is above hi"]),
+        (["render", ct_file, "--labels-from", small], ["--labels-from", "shape"]),
+        (["render", ct_file, "--preset", "liver"], ["--preset", "unknown preset", "bone"]),
+        (["render", ct_file, "--preset", "bone", "--threshold", "300"], ["--preset", "not both"]),
+        (["render", label_file, "--labels", "--threshold", "2"], ["--threshold", "--labels-from"]),
+        (["render", ct_file, "--threshold", "500", "--label-png", tmp_path / "l.png"], ["--label-png", "no labels"]),
+        (["render", label_file, "--label", "two"], ["--label", "separated by commas"]),
+        (["render", label_file, "--labels", "--colour", "#12"], ["--colour", "not a colour"]),
+    ]
+    for args, words in cases:
+        result = run(*args, "--size", "32", "-o", out)
+        assert_bad_input(result, *words)
+        assert not out.exists() and not (tmp_path / "l.png").exists(), args
+
+
+def test_batch_pairs_images_with_label_maps(tmp_path, ct_file, label_file):
+    (tmp_path / "m.csv").write_text(f"input,labels\n{ct_file.name},{label_file.name}\n{ct_file.name},\n")
+    result = run("batch", "--manifest", tmp_path / "m.csv", "--threshold", "500", "--view", "left",
+                 "--view", "anterior", "--size", "40", "--per-label", "--jobs", "1", "-o", tmp_path / "out")
+    assert result.exit_code == 0, result.output
+    with open(tmp_path / "out" / "summary.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["labels"] for r in rows[:2]] != ["", ""] and all(int(r["labels"]) >= 2 for r in rows[:2])
+    assert [r["labels"] for r in rows[2:]] == ["", ""]                  # the second row is a plain CT
+    made = sorted(p.name for p in (tmp_path / "out" / "ct").iterdir())
+    assert "left-label3.png" in made and "anterior.png" in made
+    alone = iio.imread(tmp_path / "out" / "ct" / "left-label3.png")
+    assert alone.shape[:2] == (40, 40) and alone.any()
