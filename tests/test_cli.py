@@ -357,7 +357,7 @@ def test_research_formats_through_the_commands(tmp_path):
     assert run("encode", tmp_path / "t.nii.gz", "--frame", 0, "--threshold", 500, "-o", tmp_path / "t.vxs").exit_code == 0
     result = run("batch", tmp_path / "t.nii.gz", "--frame", 0, "--threshold", 500, "--size", 24, "-o", tmp_path / "b",
                  "--jobs", 1)
-    assert result.exit_code == 0 and (tmp_path / "b" / "t.nii" / "anterior.png").exists()
+    assert result.exit_code == 0 and (tmp_path / "b" / "t" / "anterior.png").exists()
 
 
 def test_bad_research_files_end_in_one_line(tmp_path):
