@@ -23,8 +23,24 @@ CASES = {
     "shell-cutaway": SHELL + ["--cut-depth", "0", "--light", "1,-1,-2"],
     "headsq-bone": ["render", "{data}/headsq", "--raw", "64x64:uint16:little", "--spacing", "3.2,3.2,1.5",
                     "--threshold", "1150", "--view", "anterior", "--size", "128"],
+    # vhf_head with its label map by HU ranges (bone, soft tissue, airway), cut open
+    "head-labels": ["render", "{data}/vhf_head", "--labels-from", "{samples}/head.seg.nrrd", "--voxel", "2",
+                    "--alpha", "90", "--beta", "60", "--clip-x", ":128", "--legend", "--size", "160"],
 }
-REAL_DATA = {"headsq-bone"}
+REAL_DATA = {"headsq-bone", "head-labels"}
+
+
+def head_labels(samples, data):
+    """The label map of vhf_head by HU ranges (``samples.tissue_labels``), with its names and colours as a
+    ``.seg.nrrd``, made once into ``samples``."""
+    from voxrender.io import read_volume
+    from voxrender.output import write_nrrd
+    from voxrender.samples import TISSUES, segment_fields, tissue_labels
+
+    target = Path(samples) / "head.seg.nrrd"
+    if not target.is_file():
+        volume = read_volume(Path(data) / "vhf_head")
+        write_nrrd(target, tissue_labels(volume.values), volume.spacing, segment_fields(TISSUES))
 
 
 def render_case(name, output, samples, data=DATA):
@@ -32,6 +48,8 @@ def render_case(name, output, samples, data=DATA):
     args = [a.format(samples=samples, data=data) for a in CASES[name]] + ["-o", str(output)]
     if name != "demo" and not (Path(samples) / "shell").is_dir():
         CliRunner().invoke(main, ["samples", str(samples)])
+    if name == "head-labels":
+        head_labels(samples, data)
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 0, (args, result.output)
 

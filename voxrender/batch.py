@@ -34,6 +34,7 @@ import numpy as np
 
 from . import __version__, output, parse, segments
 from .errors import InputError
+from .render import framing_box
 from .picture import Outputs, RenderOptions, about, picture, write_outputs
 from .pipeline import Encoded, PrepOptions, ReadOptions, is_segments_file, load_segments
 from .prep import LabelSelection, otsu_threshold
@@ -357,7 +358,7 @@ def framed(item, view, encoded):
     if item.options.scale is not None or item.options.fit != "object" or len(item.views) < 2:
         return chosen
     others = [item.options.view(v.alpha, v.beta, v.gamma) for v in item.views]
-    return frame_together([chosen, *others], encoded.shape, encoded.bounding_box())[0]
+    return frame_together([chosen, *others], encoded.shape, framing_box(encoded, item.options.clip))[0]
 
 
 def is_done(path, size):

@@ -138,12 +138,13 @@ def write_nifti(path, values, spacing=(1.0, 1.0, 1.0)):
     return Path(path)
 
 
-def write_nrrd(path, values, spacing=(1.0, 1.0, 1.0)):
-    """Write ``values[z, y, x]``, in the canonical frame, as a gzip-encoded NRRD in LPS space, atomically."""
+def write_nrrd(path, values, spacing=(1.0, 1.0, 1.0), fields=None):
+    """Write ``values[z, y, x]``, in the canonical frame, as a gzip-encoded NRRD in LPS space, atomically;
+    ``fields`` adds header fields (e.g. a ``.seg.nrrd``'s ``Segment0_Name``)."""
     import nrrd
 
     header = {"space": "left-posterior-superior", "space directions": np.diag([float(v) for v in spacing]),
-              "space origin": [0.0, 0.0, 0.0], "encoding": "gzip"}
+              "space origin": [0.0, 0.0, 0.0], "encoding": "gzip", **(fields or {})}
     with atomic_output(path) as tmp:
         nrrd.write(str(tmp), np.ascontiguousarray(values), header, index_order="C")
     return Path(path)

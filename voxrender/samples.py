@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["SAMPLES", "SAMPLE_THRESHOLD", "sphere", "torus", "shell", "staircase", "cylinder", "STAIRCASE_VOXELS",
-           "TISSUES", "tissue_labels"]
+           "TISSUES", "tissue_labels", "segment_fields"]
 
 AIR, OBJECT = 40, 1040
 SAMPLE_THRESHOLD = 500
@@ -122,12 +122,24 @@ def cylinder(n=64, radius=None, axis=(0.25, 0.15, 0.8)):
 SAMPLES = {"sphere": sphere, "torus": torus, "shell": shell, "staircase": staircase, "cylinder": cylinder}
 
 
-TISSUES = {1: ("bone", 300, None), 2: ("soft tissue", -300, 300), 3: ("airway", None, -300)}
+# name and colour of the labels of tissue_labels (3D Slicer's bone and muscle colours, a light blue for air)
+TISSUES = {1: ("bone", (241, 214, 145)), 2: ("soft tissue", (192, 104, 88)), 3: ("airway", (110, 170, 230))}
+
+
+def segment_fields(table):
+    """The header fields of a 3D Slicer ``.seg.nrrd`` naming and colouring labels ``{label: (name, (r, g, b))}``
+    (for :func:`voxrender.output.write_nrrd`)."""
+    fields = {}
+    for k, (label, (name, colour)) in enumerate(sorted(table.items())):
+        fields.update({f"Segment{k}_Name": name, f"Segment{k}_Color": " ".join(f"{c / 255:.4f}" for c in colour),
+                       f"Segment{k}_LabelValue": str(label), f"Segment{k}_Layer": "0"})
+    return fields
 
 
 def tissue_labels(hu):
-    """A label map of a CT by Hounsfield ranges: 1 bone (from 300 HU), 2 soft tissue (-300 to 300 HU), 3 airway
-    (below -300 HU and enclosed by the body: air not connected to the volume's border).
+    """A label map of a CT by Hounsfield ranges (names and colours in :data:`TISSUES`): 1 bone (from 300 HU),
+    2 soft tissue (-300 to 300 HU), 3 airway (below -300 HU and enclosed by the body: air not connected to the
+    volume's border).
 
     A stand-in for a segmentation tool's output, made from the CT itself, for tests and examples.
 

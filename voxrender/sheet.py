@@ -47,13 +47,14 @@ def render_sheet(rows, views, progress=None):
     A row of several views frames them with one scale, as a batch does.
     """
     from .picture import picture
+    from .render import framing_box
     from .view import frame_together
 
     pictures, captions = [], []
     for row_label, encoded, options in rows:
         chosen = [options.view(*angles) for _, angles in views]
         if options.scale is None and options.fit == "object":
-            chosen = frame_together(chosen, encoded.segments.shape, encoded.segments.bounding_box())
+            chosen = frame_together(chosen, encoded.segments.shape, framing_box(encoded.segments, options.clip))
         tree = encoded.tree_for(options.method)
         pictures.append([picture(encoded.segments, v, options, progress, tree).rgb for v in chosen])
         captions.append([f"{row_label}, {label}" for label, _ in views])

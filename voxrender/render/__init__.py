@@ -26,7 +26,7 @@ from .octree_sort import render_octree_sort, render_zbuffer
 from .preimage import render_preimage
 from .raycast import render_raycast
 
-__all__ = ["Method", "METHODS", "DEFAULT_METHOD", "DepthImage", "Clip", "render", "method_record"]
+__all__ = ["Method", "METHODS", "DEFAULT_METHOD", "DepthImage", "Clip", "render", "method_record", "framing_box"]
 
 
 @dataclass(frozen=True)
@@ -111,6 +111,12 @@ class DepthImage:
         return np.isfinite(self.depth)
 
 
+def framing_box(segments, clip=None):
+    """The bounding box a picture of ``segments`` is framed on: the object's, within the clip limits."""
+    box = segments.bounding_box()
+    return (clip.box(box) or box) if clip is not None and box is not None else box
+
+
 def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, clip=None, fit="object",
            tree=None, **options):
     """Render ``segments`` with ``method`` from ``view``.
@@ -130,8 +136,9 @@ def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, 
     clip : Clip, optional
         Clip limits and cut plane.
     fit : {"object", "volume"}
-        How an unset scale frames the picture: the object as this view sees it (its projected bounding box,
-        centred, with a small margin), or the whole volume at any rotation, centred on the volume centre.
+        How an unset scale frames the picture: the object as this view sees it (its projected bounding box
+        within the clip limits, centred, with a small margin), or the whole volume at any rotation, centred on
+        the volume centre.
     tree : RegionOctree, optional
         The object's region octree, for octree methods (built here when not given).
     **options
@@ -156,7 +163,7 @@ def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, 
         raise InputError(f"{fit!r}: choose 'object' or 'volume'", parameter="fit")
     if int(supersample) < 1:
         raise InputError(f"{supersample!r}: must be a whole number >= 1", parameter="supersample")
-    view = view.fitted(segments.shape, segments.bounding_box(), fit)
+    view = view.fitted(segments.shape, framing_box(segments, clip), fit)
     if record.octree:
         options["tree"] = tree
     started = time.perf_counter()

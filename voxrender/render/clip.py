@@ -45,6 +45,23 @@ class Clip:
     def active(self):
         return any(v is not None for v in (self.x, self.y, self.z, self.cut_depth))
 
+    def box(self, box):
+        """The part of a bounding box ``((z0, z1), (y0, y1), (x0, x1))`` (inclusive) within the clip limits, so
+        that a picture is framed on what is kept; ``None`` when nothing is.
+
+        >>> Clip(x=(2, None)).box(((0, 5), (0, 5), (0, 9)))
+        ((0, 5), (0, 5), (2, 9))
+        """
+        limited = []
+        for (lo, hi), bounds in zip(box, (self.z, self.y, self.x)):
+            if bounds is not None:
+                lo = lo if bounds[0] is None else max(lo, bounds[0])
+                hi = hi if bounds[1] is None else min(hi, bounds[1] - 1)
+            if lo > hi:
+                return None
+            limited.append((lo, hi))
+        return tuple(limited)
+
     def apply_runs(self, z, y, starts, ends, view, shape):
         """Clip runs ``[starts, ends]`` of rows ``(z, y)``; return ``(keep, starts, ends)``.
 
