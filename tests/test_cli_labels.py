@@ -173,3 +173,11 @@ def test_batch_pairs_images_with_label_maps(tmp_path, ct_file, label_file):
     assert "left-label3.png" in made and "anterior.png" in made
     alone = iio.imread(tmp_path / "out" / "ct" / "left-label3.png")
     assert alone.shape[:2] == (40, 40) and alone.any()
+
+
+def test_info_lists_the_labels_of_a_label_map(label_file):
+    result = run("info", label_file, "--labels", "--json")
+    assert result.exit_code == 0, result.output
+    labels = json.loads(result.output)["labels"]
+    expected = np.unique(nested(), return_counts=True)
+    assert {int(k): v["voxels"] for k, v in labels.items()} == {int(v): int(c) for v, c in zip(*expected) if v}

@@ -373,15 +373,28 @@ def _describe(path, volume, prepare):
                 "reoriented"):
         if volume.meta.get(key):
             summary[key] = volume.meta[key]
-    threshold = suggested if callable(prepare.threshold) else prepare.threshold
+    if prepare.labels is not None and prepare.labels.source is None:       # a label map: its labels
+        summary.update(_describe_labels(values, volume.meta.get("label_table")))
+        return summary
+    threshold = suggested if callable(prepare.threshold) or prepare.threshold is None else prepare.threshold
     mask, info = prep.binarize(volume, threshold, crop=prepare.crop, voxel=prepare.voxel,
                                resample=prepare.resample, min_object=prepare.min_object)
     encoded = segments.encode(mask)
-    summary.update({"threshold": threshold, "object_grid_xyz": list(mask.shape[::-1]),
+    summary.update({"threshold": str(threshold) if isinstance(threshold, prep.Window) else threshold,
+                    "object_grid_xyz": list(mask.shape[::-1]),
                     "object_voxel_mm": info["voxel"], "object_voxels": encoded.voxel_count,
                     "object_fraction": round(encoded.voxel_count / mask.size, 6),
                     "segments": encoded.segment_count})
     return summary
+
+
+def _describe_labels(values, stored):
+    """The labels of a label map: each with its name (as a table or the palette would give it) and voxels."""
+    prep.check_labels(values)
+    found, counts = np.unique(np.asarray(values), return_counts=True)
+    table = colours.label_colours([int(v) for v in found if v], stored)
+    return {"labels": {int(v): {"name": table[int(v)][0], "colour": list(table[int(v)][1]), "voxels": int(c)}
+                       for v, c in zip(found, counts) if v}}
 
 
 class _BatchBar:
