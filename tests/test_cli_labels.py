@@ -150,7 +150,7 @@ def test_bad_label_inputs_end_in_one_line(tmp_path, label_file, ct_file):
         (["render", ct_file, "--preset", "liver"], ["--preset", "unknown preset", "bone"]),
         (["render", ct_file, "--preset", "bone", "--threshold", "300"], ["--preset", "not both"]),
         (["render", label_file, "--labels", "--threshold", "2"], ["--threshold", "--labels-from"]),
-        (["render", ct_file, "--threshold", "500", "--label-png", tmp_path / "l.png"], ["--label-png", "no labels"]),
+        (["render", ct_file, "--threshold", "500", "--label-png", tmp_path / "l.png"], ["--label-png", "single"]),
         (["render", label_file, "--label", "two"], ["--label", "separated by commas"]),
         (["render", label_file, "--labels", "--colour", "#12"], ["--colour", "not a colour"]),
     ]
@@ -181,3 +181,13 @@ def test_info_lists_the_labels_of_a_label_map(label_file):
     labels = json.loads(result.output)["labels"]
     expected = np.unique(nested(), return_counts=True)
     assert {int(k): v["voxels"] for k, v in labels.items()} == {int(v): int(c) for v, c in zip(*expected) if v}
+
+
+def test_label_options_with_a_single_object_are_refused(tmp_path, ct_file, label_file):
+    for args, words in [(["--colours", tmp_path / "t.csv"], ["--colours", "single"]), (["--legend"], ["--legend"]),
+                        (["--labels-out", tmp_path / "l.json"], ["--labels-out"])]:
+        (tmp_path / "t.csv").write_text("label,name,r,g,b\n1,a,1,2,3\n")
+        assert_bad_input(run("render", ct_file, "--threshold", "500", *args, "-o", tmp_path / "o.png"), *words)
+        assert not (tmp_path / "o.png").exists()
+    assert_bad_input(run("render", ct_file, "--labels-from", tmp_path / "none.nii.gz", "-o", tmp_path / "o.png"),
+                     "--labels-from", "none.nii.gz")

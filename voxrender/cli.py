@@ -128,6 +128,15 @@ def _check_vxs_options(path, options):
                          "give the slice stack instead")
 
 
+def _check_label_options(s, options):
+    """Options for labels (``{name: value}``) given with a single object would silently do nothing: refuse them."""
+    if s.labels is None:
+        given = [flag(name) for name, value in options.items() if value]
+        if given:
+            raise InputError(f"{', '.join(given)} apply to labels, but the object is a single one; show a label map's "
+                             "labels by --labels, or a CT's by --labels-from")
+
+
 # ---------------------------------------------------------------- shared options
 
 def _decorate(command, decorators):
@@ -295,6 +304,8 @@ def render_command(input_path, output_path, depth_out, depth_png, stats_json, no
     for path in outputs.paths():
         output.check_writable(path)
     loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
+    _check_label_options(loaded.segments, {"colours": options["colours"], "legend": options["legend"],
+                                           "labels_out": labels_out, "label_png": label_png})
     result = picture(loaded.segments, render_options.view(*angles), render_options, progress)
     result.seconds = {**loaded.seconds, **result.seconds}
     write_outputs(result, outputs, about(loaded.segments))

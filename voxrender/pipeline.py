@@ -145,7 +145,10 @@ def _encode_labels(volume, read, prepare, meta, progress):
     selection = prepare.labels
     label_volume = volume
     if selection.source is not None:
-        label_volume = replace(read, format="auto", frame=None).read(selection.source)
+        try:
+            label_volume = replace(read, format="auto", frame=None).read(selection.source)
+        except InputError as exc:
+            raise InputError(f"the label map: {exc.message}", parameter="labels_from") from None
         if label_volume.shape != volume.shape:
             raise InputError(f"the label map {selection.source} has shape {label_volume.shape[::-1]} (x, y, z) but "
                              f"the image has {volume.shape[::-1]}; give the label map made from this image",

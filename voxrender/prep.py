@@ -328,5 +328,6 @@ def check_labels(values):
     elif values.dtype.kind not in "uib":
         raise InputError(f"a label map must hold whole numbers, not {values.dtype}", parameter="label")
     if values.size and (np.min(values) < 0 or np.max(values) > 65535):
-        raise InputError(f"labels must lie in 0..65535; this map holds {np.min(values):g}..{np.max(values):g}",
-                         parameter="label")
+        raise InputError(f"labels must lie in 0..65535, but the values run from {np.min(values):g} to "
+                         f"{np.max(values):g}: if this is an image, not a label map, select by --threshold, or pair "
+                         "it with its label map by --labels-from", parameter="label")
