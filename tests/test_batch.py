@@ -160,17 +160,17 @@ def test_batch_command(tmp_path, stacks):
 
 
 def test_octree_pictures_of_one_object_share_its_octree(stacks, tmp_path):
-    # A worker keeps the object it rendered last, so the octree methods build its octree once per object.
+    # The cache keeps the object with its octree (a .vxo), and a worker keeps the object it rendered last.
     result = CliRunner().invoke(main, ["batch", str(stacks / "ball.npy"), "--threshold", "500", "--turntable", "3",
                                        "--method", "octree-ftb", "--jobs", "1", "--size", "32", "-o",
                                        str(tmp_path / "out")])
     assert result.exit_code == 0, result.output
     rows = read_summary(tmp_path / "out" / "summary.csv")
     assert [row["status"] for row in rows] == ["ok"] * 3
-    path = next((tmp_path / "out" / ".voxrender-cache").glob("*.vxs"))
+    path = next((tmp_path / "out" / ".voxrender-cache").glob("*.vxo"))
     stamp = (path.stat().st_size, path.stat().st_mtime_ns)
     assert batch._encoded(str(path), stamp) is batch._encoded(str(path), stamp)
-    assert batch._encoded(str(path), stamp)._octree is not None
+    assert batch._encoded(str(path), stamp).has_octree          # read from the file, not built
 
 
 def test_a_turntable_keeps_one_scale_and_centres_every_frame(tmp_path, stacks):

@@ -98,14 +98,22 @@ def test_fit_object_zooms_in(tmp_path, cube_folder):
     assert covered["object"] > 1.5 * covered["volume"]
 
 
-def test_encode_octree(tmp_path, cube_folder):
-    from voxrender import octree
+def test_encode_octree_then_render_and_describe_it(tmp_path, cube_folder):
+    from voxrender.pipeline import load_segments
 
     result = run("encode", cube_folder, "--threshold", 500, "--octree", "-o", tmp_path / "c.vxo")
     assert result.exit_code == 0, result.output
-    tree = octree.load(tmp_path / "c.vxo")
-    assert tree.to_mask().sum() == 216 and "black" in result.output
+    loaded = load_segments(tmp_path / "c.vxo")
+    assert loaded.has_octree and loaded.octree().to_mask().sum() == 216 and "black" in result.output
     assert_bad_input(run("encode", cube_folder, "--octree", "-o", tmp_path / "c.vxs"), ".vxo")
+    for method in ("octree-ftb", "ftb"):
+        result = run("render", tmp_path / "c.vxo", "--method", method, "--size", 32, "-o", tmp_path / f"{method}.png")
+        assert result.exit_code == 0, result.output
+    assert np.array_equal(iio.imread(tmp_path / "octree-ftb.png") > 0, iio.imread(tmp_path / "ftb.png") > 0)
+    result = run("info", tmp_path / "c.vxo", "--json")
+    assert result.exit_code == 0 and json.loads(result.output)["octree"]["black"] >= 1, result.output
+    result = run("encode", tmp_path / "c.vxo", "--octree", "-o", tmp_path / "again.vxo")       # .vxs -> .vxo
+    assert result.exit_code == 0, result.output
 
 
 def test_info_reports_threshold_and_counts(cube_folder):

@@ -52,14 +52,77 @@ def test_flat_arrays_are_consistent():
     assert sum(v["grey"] for v in counts["by_level"].values()) == counts["grey"]
 
 
-def test_save_and_load(tmp_path):
-    tree = octree.build(staircase_mask())
-    octree.save(tree, tmp_path / "s.vxo")
-    again = octree.load(tmp_path / "s.vxo")
-    assert np.array_equal(again.to_mask(), staircase_mask()) and again.n == 2
-    (tmp_path / "bad.vxo").write_bytes(b"nope")
-    with pytest.raises(InputError):
-        octree.load(tmp_path / "bad.vxo")
+def test_a_vxo_keeps_the_octree_and_its_face_adjacency(tmp_path):
+    from voxrender.pipeline import Encoded, load_segments
+    from voxrender.segments import encode, is_mapped
+
+    mask = np.random.default_rng(5).random((9, 7, 8)) < 0.4
+    made = Encoded(encode(mask))
+    made.save(tmp_path / "s.vxo", octree=True)
+    again = load_segments(tmp_path / "s.vxo")
+    assert again.has_octree and np.array_equal(again.octree().to_mask(), mask)
+    built = made.octree()
+    for name in ("color", "level", "origin", "first_child", "linear"):
+        assert np.array_equal(getattr(again.octree(), name), getattr(built, name)), name
+    assert is_mapped(again.octree().color)
+    for kind in ("white_to_white", "white_to_black"):
+        for stored, fresh in zip(getattr(again.octree(), kind), getattr(built, kind)):
+            assert np.array_equal(stored.indptr, fresh.indptr) and np.array_equal(stored.indices, fresh.indices)
+    made.save(tmp_path / "plain.vxs")
+    assert not load_segments(tmp_path / "plain.vxs").has_octree
+    (tmp_path / "old.vxo").write_bytes(b"PK\x03\x04 an npz of an older voxrender")
+    with pytest.raises(InputError, match="older voxrender"):
+        load_segments(tmp_path / "old.vxo")
+
+
+def dense_build(mask):
+    """The region octree built top-down from a pyramid of full and empty cells of the whole padded cube: the
+    straightforward construction, the oracle of the object-sized :func:`octree.build_from_voxels`."""
+    n = max(0, int(np.ceil(np.log2(max(mask.shape)))))
+    side = 1 << n
+    padded = np.zeros((side, side, side), bool)
+    padded[:mask.shape[0], :mask.shape[1], :mask.shape[2]] = mask
+    full, occupied = [padded], [padded]
+    for _ in range(n):
+        full.insert(0, _halve(full[0], np.logical_and))
+        occupied.insert(0, _halve(occupied[0], np.logical_or))
+    colors, levels, origins, firsts = [], [], [], []
+    cells, start = np.zeros((1, 3), np.int64), 0
+    for k in range(n + 1):
+        x, y, z = cells.T
+        color = np.where(full[k][z, y, x], octree.BLACK, np.where(~occupied[k][z, y, x], octree.WHITE, octree.GREY))
+        grey = np.flatnonzero(color == octree.GREY)
+        first = np.full(len(cells), -1, np.int64)
+        first[grey] = start + len(cells) + 8 * np.arange(len(grey))
+        colors.append(color)
+        levels.append(np.full(len(cells), k))
+        origins.append(cells << (n - k))
+        firsts.append(first)
+        start += len(cells)
+        cells = (2 * cells[grey][:, None, :] + octree.CHILD_OFFSETS[None]).reshape(-1, 3)
+        if not len(cells):
+            break
+    return [np.concatenate(part) for part in (colors, levels, origins, firsts)]
+
+
+def _halve(cells, combine):
+    cells = combine(cells[0::2], cells[1::2])
+    cells = combine(cells[:, 0::2], cells[:, 1::2])
+    return combine(cells[:, :, 0::2], cells[:, :, 1::2])
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_object_sized_build_equals_the_dense_one(seed):
+    from voxrender.segments import encode
+
+    rng = np.random.default_rng(seed)
+    shape = tuple(rng.integers(1, 19, 3))
+    mask = rng.random(shape) < [0.0, 0.05, 0.4, 0.8, 0.97, 1.0][seed]
+    mask[: shape[0] // 2, : shape[1] // 2, : shape[2] // 2] = seed % 2           # solid blocks merge
+    expected = dense_build(mask)
+    for tree in (octree.build(mask), octree.build_from_segments(encode(mask))):
+        found = [tree.color, tree.level, tree.origin, tree.first_child]
+        assert all(np.array_equal(a, b) for a, b in zip(found, expected))
 
 
 def _leaf_labels(tree):
@@ -100,6 +163,7 @@ def test_parents_and_white_adjacency():
         for color, matrix, names in ((octree.WHITE, tree.white_to_white[direction], white),
                                      (octree.BLACK, tree.white_to_black[direction], np.arange(len(tree.color)))):
             keep = (tree.color[source] == octree.WHITE) & (tree.color[target] == color)
-            rows, cols = matrix.nonzero()
+            rows = np.repeat(np.arange(len(matrix.indptr) - 1), np.diff(matrix.indptr))
+            cols = matrix.indices
             assert set(zip(white[rows].tolist(), names[cols].tolist())) == \
                 set(zip(source[keep].tolist(), target[keep].tolist()))

@@ -60,7 +60,7 @@ def test_file_round_trip_is_memory_mapped(tmp_path):
     path = tmp_path / "obj.vxs"
     segments.save(segments.encode(mask, (0.5, 0.5, 0.5), {"threshold": 300.0}), path)
     loaded = segments.load(path)
-    assert isinstance(loaded.starts, np.memmap) or isinstance(loaded.starts.base, np.memmap)
+    assert segments.is_mapped(loaded.starts)
     assert np.array_equal(loaded.to_mask(), mask)
     assert loaded.spacing == (0.5, 0.5, 0.5) and loaded.meta["threshold"] == 300.0
     assert [p.name for p in tmp_path.iterdir()] == ["obj.vxs"]  # no temporary left behind

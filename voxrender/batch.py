@@ -34,9 +34,9 @@ import numpy as np
 
 from . import __version__, output, parse, segments
 from .errors import InputError
-from .render import framing_box
+from .render import framing_box, method_record
 from .picture import Outputs, RenderOptions, about, picture, write_outputs
-from .pipeline import Encoded, PrepOptions, ReadOptions, is_segments_file, load_segments
+from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
 from .prep import LabelSelection, otsu_threshold
 from .view import PRESETS, angles_from_matrix, frame_together, rotation_matrix
 
@@ -292,14 +292,15 @@ def encode_task(item, cache_dir):
     try:
         if is_segments_file(item.input):
             return {"input": item.input, "segments": item.input, "seconds": {"load": 0.0, "prepare": 0.0}}
+        with_octree = method_record(item.method).octree          # kept in the cache: built once, not per view
         key = cache_key(item.input, item.read, item.prepare)
-        target = Path(cache_dir) / f"{key}.vxs"
+        target = Path(cache_dir) / f"{key}.{'vxo' if with_octree else 'vxs'}"
         if target.is_file():
             segments.load(target)  # a damaged cache file is made again
             return {"input": item.input, "segments": str(target), "seconds": {"load": 0.0, "prepare": 0.0},
                     "cached": True, "key_seconds": time.perf_counter() - started}
         loaded = load_segments(item.input, item.read, item.prepare)
-        segments.save(loaded.segments, target)
+        loaded.save(target, octree=with_octree)
         return {"input": item.input, "segments": str(target), "seconds": loaded.seconds, "cached": False}
     except InputError as exc:
         return {"input": item.input, "error": str(exc)}
@@ -311,8 +312,8 @@ def encode_task(item, cache_dir):
 @functools.lru_cache(maxsize=2)
 def _encoded(path, stamp):
     """The object at ``path`` (``stamp``: its size and time, so a remade file is read again), kept between the
-    tasks of a worker with its octree: the octree methods build the octree once per object, not once per picture."""
-    return Encoded(segments.load(path))
+    tasks of a worker with its octree (read from a ``.vxo``, or built once per object, not once per picture)."""
+    return load_segments(path)
 
 
 def render_task(item, view, index, segments_path, out_dir, encode_seconds):

@@ -306,7 +306,8 @@ def render_command(input_path, output_path, depth_out, depth_png, stats_json, no
     loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
     _check_label_options(loaded.segments, {"colours": options["colours"], "legend": options["legend"],
                                            "labels_out": labels_out, "label_png": label_png})
-    result = picture(loaded.segments, render_options.view(*angles), render_options, progress)
+    result = picture(loaded.segments, render_options.view(*angles), render_options, progress,
+                     loaded.tree_for(render_options.method))
     result.seconds = {**loaded.seconds, **result.seconds}
     write_outputs(result, outputs, about(loaded.segments))
     if not result.image.coverage.any():
@@ -318,9 +319,11 @@ def render_command(input_path, output_path, depth_out, depth_png, stats_json, no
 @_prep_options_decorator
 @click.option("-o", "--output", "output_path", required=True, type=click.Path(path_type=Path),
               help=".vxs file to write (.vxo with --octree).")
-@click.option("--octree", "as_octree", is_flag=True, help="Write the region and linear octrees (.vxo) instead.")
+@click.option("--octree", "as_octree", is_flag=True,
+              help="Also keep the region octree, linear octree and face adjacency (.vxo), so that octree methods "
+                   "rendering from it pay only their traversal.")
 def encode_command(input_path, output_path, as_octree, **options):
-    """Threshold INPUT and save its run-length segments (.vxs) or its octrees (.vxo)."""
+    """Select the object of INPUT and save its run-length segments (.vxs), with its octrees (.vxo)."""
     suffix = ".vxo" if as_octree else ".vxs"
     if output_path.suffix.lower() != suffix:
         raise InputError(f"the output {output_path} must end in {suffix}")
@@ -329,22 +332,19 @@ def encode_command(input_path, output_path, as_octree, **options):
     _check_vxs_options(input_path, options)
     output.check_writable(output_path)
     loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
+    loaded.save(output_path, octree=as_octree)
     s = loaded.segments
     nz, ny, nx = s.shape
-    if as_octree:
-        tree = octree.build(s.to_mask())
-        octree.save(tree, output_path)
-        counts = tree.counts()
-        click.echo(f"{output_path}: {nx}x{ny}x{nz} voxels in a {1 << tree.n}^3 octree: {counts['black']} black, "
-                   f"{counts['white']} white, {counts['grey']} grey nodes; "
-                   f"{len(octree.linear_octree(tree))} linear-octree codes")
-        return
-    segments.save(s, output_path)
     chosen = [f"threshold {s.meta['threshold']}"] if "threshold" in s.meta else []
     if "labels" in s.meta:
         chosen.append(f"{len(s.meta['labels'])} labels" + (" as one object" if s.labels is None else ""))
-    click.echo(f"{output_path}: {nx}x{ny}x{nz} voxels, {s.voxel_count} in the object, {s.segment_count} segments, "
-               f"{', '.join(chosen)}")
+    click.echo(f"{output_path}: {nx}x{ny}x{nz} voxels, {s.voxel_count} in the object, {s.segment_count} segments"
+               + "".join(f", {c}" for c in chosen))
+    if as_octree:
+        tree = loaded.octree()
+        counts = tree.counts()
+        click.echo(f"  a {1 << tree.n}^3 octree: {counts['black']} black, {counts['white']} white, {counts['grey']} "
+                   f"grey nodes; {len(tree.linear)} linear-octree codes")
 
 
 @main.command("info")
@@ -355,10 +355,16 @@ def info_command(input_path, as_json, **options):
     """Describe INPUT: size, spacing, values, a suggested threshold, the object at a threshold."""
     if is_segments_file(input_path):
         _check_vxs_options(input_path, options)
-        s = segments.load(input_path)
-        summary = {"input": str(input_path), "format": "vxs", "dimensions_xyz": list(s.shape[::-1]),
-                   "spacing_mm": list(s.spacing), "object_voxels": s.voxel_count, "segments": s.segment_count,
+        loaded = load_segments(input_path)
+        s = loaded.segments
+        summary = {"input": str(input_path), "format": input_path.suffix.lower()[1:],
+                   "dimensions_xyz": list(s.shape[::-1]), "spacing_mm": list(s.spacing),
+                   "object_voxels": s.voxel_count, "segments": s.segment_count,
                    **{k: v for k, v in s.meta.items() if k != "source"}}
+        if loaded.has_octree:
+            counts = loaded.octree().counts()
+            summary["octree"] = {"side": 1 << loaded.octree().n, **{k: counts[k] for k in ("black", "white", "grey")},
+                                 "face_adjacency": "kept"}
     else:
         volume = _read_options(options).read(input_path, progress)
         summary = _describe(input_path, volume, _prep_options(options))

@@ -18,16 +18,16 @@ below a full octant, sorted.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 from functools import cached_property
-from pathlib import Path
 
 import numpy as np
 
 from .errors import InputError
-from .output import atomic_output
 
-__all__ = ["WHITE", "BLACK", "GREY", "RegionOctree", "build", "linear_octree", "code_strings", "codes_to_mask",
-           "save", "load", "CHILD_OFFSETS", "morton"]
+__all__ = ["WHITE", "BLACK", "GREY", "RegionOctree", "build", "build_from_segments", "build_from_voxels",
+           "linear_octree", "code_strings", "codes_to_mask", "sections", "from_sections", "CHILD_OFFSETS", "morton",
+           "unmorton", "Adjacency", "ranges"]
 
 WHITE, BLACK, GREY = 0, 1, 2
 X_MARKER = 8  # the digit X, which sorts after 0..7
@@ -43,6 +43,43 @@ def _child_offsets():
 
 
 CHILD_OFFSETS = _child_offsets()
+
+
+class Adjacency(NamedTuple):
+    """Rows of neighbours, compressed (as CSR without values): row ``k`` is ``indices[indptr[k]:indptr[k + 1]]``.
+
+    >>> table = Adjacency.from_pairs(np.array([2, 0, 2]), np.array([5, 7, 6]), rows=3)
+    >>> table.row(2).tolist(), table.neighbours(np.array([0, 2])).tolist()
+    ([5, 6], [7, 5, 6])
+    """
+
+    indptr: np.ndarray
+    indices: np.ndarray
+
+    @classmethod
+    def from_pairs(cls, source, target, rows):
+        order = np.argsort(source, kind="stable")
+        indptr = np.zeros(rows + 1, np.int64)
+        np.cumsum(np.bincount(source, minlength=rows), out=indptr[1:])
+        return cls(indptr, np.asarray(target, np.int64)[order])
+
+    def row(self, k):
+        return self.indices[self.indptr[k]:self.indptr[k + 1]]
+
+    def neighbours(self, rows):
+        """The neighbours of every one of ``rows``, one after another."""
+        return self.indices[ranges(self.indptr[rows], self.indptr[np.asarray(rows) + 1] - self.indptr[rows])]
+
+
+def ranges(starts, counts):
+    """``starts[i], starts[i] + 1, ... (counts[i] numbers)`` for every ``i``, one after another.
+
+    >>> ranges(np.array([5, 0]), np.array([2, 3])).tolist()
+    [5, 6, 0, 1, 2]
+    """
+    starts, counts = np.asarray(starts, np.int64), np.asarray(counts, np.int64)
+    ends = np.cumsum(counts)
+    return np.repeat(starts - ends + counts, counts) + np.arange(ends[-1] if len(ends) else 0)
 
 
 @dataclass
@@ -63,6 +100,7 @@ class RegionOctree:
     origin: np.ndarray           # (x, y, z) of the node's low corner, in voxels
     first_child: np.ndarray      # index of the first of the eight children; -1 for leaves
     meta: dict = field(default_factory=dict)
+    stored: dict = field(default_factory=dict, repr=False, compare=False)   # derived arrays read from a file
 
     def size(self, nodes):
         """Side in voxels of the node(s)."""
@@ -124,35 +162,42 @@ class RegionOctree:
         return pairs
 
     @cached_property
+    def linear(self):
+        """The linear octree (:func:`linear_octree`), as kept in a file or made now."""
+        if "octree_linear" in self.stored:
+            return self.stored["octree_linear"].reshape(-1, self.n)
+        return linear_octree(self)
+
+    @cached_property
     def white_leaves(self):
         """The white leaves, in node order: row ``k`` of :attr:`white_to_white` is node ``white_leaves[k]``."""
         return np.flatnonzero((self.color == WHITE) & (self.first_child < 0))
 
     @cached_property
     def white_to_white(self):
-        """The steps through empty space: one sparse matrix per direction ``2 * axis + high`` (``high`` 1 for the
-        neighbours on the high side), entry ``[k, m]`` 1 when white leaves ``white_leaves[k]`` and
-        ``white_leaves[m]`` share part of a face that way.  One spare last row and column for graph searches to
-        start from.
+        """The steps through empty space: one :class:`Adjacency` per direction ``2 * axis + high`` (``high`` 1
+        for the neighbours on the high side); row ``k`` lists the numbers ``m`` of the white leaves
+        ``white_leaves[m]`` that share part of a face with ``white_leaves[k]`` that way.
 
         >>> tree = build(np.array([[[1, 0], [0, 0]], [[0, 0], [0, 0]]], bool))   # voxel (0, 0, 0) black
         >>> corner = np.searchsorted(tree.white_leaves, 1 + 0)   # label 0: the white voxel at (1, 1, 1)
-        >>> [m[corner].nnz for m in tree.white_to_white]         # one white neighbour on each low side
+        >>> [len(a.row(corner)) for a in tree.white_to_white]   # one white neighbour on each low side
         [1, 0, 1, 0, 1, 0]
         """
         return self._white_rows(WHITE)
 
     @cached_property
     def white_to_black(self):
-        """As :attr:`white_to_white`, to the black leaves across each face: entry ``[k, j]`` 1 when white leaf
-        ``white_leaves[k]`` and black leaf ``j`` (a node number) share part of a face that way."""
+        """As :attr:`white_to_white`, to the black leaves across each face: row ``k`` lists the node numbers of
+        the black leaves that share part of a face with white leaf ``white_leaves[k]`` that way."""
         return self._white_rows(BLACK)
 
     def _white_rows(self, target_color):
-        from scipy.sparse import csr_matrix   # imported here: only octree-ftb needs it, and it is slow to load
-
+        kind = "white" if target_color == WHITE else "black"
+        if f"octree_{kind}0_indptr" in self.stored:                 # kept in the file: no search
+            return [Adjacency(*(self.stored[f"octree_{kind}{direction}_{part}"] for part in ("indptr", "indices")))
+                    for direction in range(6)]
         white = self.color == WHITE
-        rows = len(self.white_leaves) + 1
         number = np.full(len(self.color), -1, np.int64)       # node -> its number among the white leaves
         number[self.white_leaves] = np.arange(len(self.white_leaves))
         tables = []
@@ -162,8 +207,7 @@ class RegionOctree:
                 source, target = number[source[keep]], target[keep]
                 if target_color == WHITE:
                     target = number[target]
-                shape = (rows, rows if target_color == WHITE else len(self.color))
-                tables.append(csr_matrix((np.ones(len(source)), (source, target)), shape=shape))
+                tables.append(Adjacency.from_pairs(source, target, len(self.white_leaves)))
         return tables
 
     def to_mask(self):
@@ -178,8 +222,20 @@ class RegionOctree:
         return mask[:nz, :ny, :nx]
 
 
+def _spread_table(bits=11):
+    """The numbers ``0 .. 2^bits - 1`` with their bits spread to every third bit."""
+    values = np.arange(1 << bits, dtype=np.int64)
+    spread = np.zeros_like(values)
+    for bit in range(bits):
+        spread |= ((values >> bit) & 1) << (3 * bit)
+    return spread
+
+
+_SPREAD = _spread_table()
+
+
 def morton(points):
-    """Morton (Z-order) codes of integer ``(x, y, z)`` points: their bits interleaved, x lowest.
+    """Morton (Z-order) codes of integer ``(x, y, z)`` points (below 2^21): their bits interleaved, x lowest.
 
     Aligned cubes of the octree are contiguous ranges of codes, so a sorted list of leaf codes
     locates the leaf holding any voxel with one binary search.
@@ -189,66 +245,110 @@ def morton(points):
     """
     points = np.asarray(points, np.int64)
     codes = np.zeros(len(points), np.int64)
-    for axis in range(3):
-        spread = points[:, axis] & 0x1FFFFF                 # 21 bits, spread to every third bit
-        for shift, keep in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF), (8, 0x100F00F00F00F00F),
-                            (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
-            spread = (spread | (spread << shift)) & keep
+    small = not len(points) or int(points.max()) < 0x800
+    for axis in range(3):                 # 11 bits at a time, from a table
+        value = points[:, axis]
+        spread = _SPREAD[value & 0x7FF] if small else \
+            _SPREAD[value & 0x7FF] | (_SPREAD[(value >> 11) & 0x3FF] << 33)
         codes |= spread << axis
     return codes
 
 
-def _pyramid(mask, n):
-    """Per level k (0..n): which cells of side 2^(n-k) are all black and which are all white."""
-    full, occupied = [None] * (n + 1), [None] * (n + 1)
-    full[n], occupied[n] = mask, mask
-    for k in range(n - 1, -1, -1):
-        full[k] = _halve(full[k + 1], np.logical_and)
-        occupied[k] = _halve(occupied[k + 1], np.logical_or)
-    return full, [~cells for cells in occupied]
+def unmorton(codes):
+    """The integer ``(x, y, z)`` points of Morton codes: the inverse of :func:`morton`.
 
-
-def _halve(cells, combine):
-    """Combine each 2 x 2 x 2 block of ``cells`` into one (elementwise on strided views: much faster than a
-    reduction over the axes of a 6-D reshape)."""
-    cells = combine(cells[0::2], cells[1::2])
-    cells = combine(cells[:, 0::2], cells[:, 1::2])
-    return combine(cells[:, :, 0::2], cells[:, :, 1::2])
+    >>> unmorton(morton(np.array([[5, 3, 9]]))).tolist()
+    [[5, 3, 9]]
+    """
+    codes = np.asarray(codes, np.int64)
+    points = np.empty((len(codes), 3), np.int64)
+    for axis in range(3):
+        bits = (codes >> axis) & 0x1249249249249249
+        for shift, keep in ((2, 0x10C30C30C30C30C3), (4, 0x100F00F00F00F00F), (8, 0x1F0000FF0000FF),
+                            (16, 0x1F00000000FFFF), (32, 0x1FFFFF)):
+            bits = (bits | (bits >> shift)) & keep
+        points[:, axis] = bits
+    return points
 
 
 def build(mask):
     """The region octree of a bool mask ``[z, y, x]`` (padded with white to a ``2^n`` cube).
 
-    Built top-down one level at a time from a pyramid of full and empty cells, so each
-    level is a handful of array operations.
+    >>> tree = build(np.array([[[1, 1], [1, 1]], [[1, 1], [1, 0]]], bool))
+    >>> tree.color.tolist()     # the root is grey; its children in label order, the missing voxel first
+    [2, 0, 1, 1, 1, 1, 1, 1, 1]
     """
     mask = np.asarray(mask, bool)
     if mask.ndim != 3 or not mask.size:
         raise InputError(f"an octree needs a 3-D mask, got shape {mask.shape}")
-    n = max(0, int(np.ceil(np.log2(max(mask.shape)))))
-    side = 1 << n
-    padded = np.zeros((side, side, side), bool)
-    padded[:mask.shape[0], :mask.shape[1], :mask.shape[2]] = mask
-    full, empty = _pyramid(padded, n)
+    z, y, x = np.nonzero(mask)
+    return build_from_voxels(np.stack([x, y, z], axis=1), mask.shape)
+
+
+def build_from_segments(segments):
+    """The region octree of run-length :class:`~voxrender.segments.Segments`, without making their mask: the
+    work and memory grow with the object, not with the octree's cube."""
+    nz, ny, _ = segments.shape
+    offsets = np.asarray(segments.offsets)
+    starts, ends = np.asarray(segments.starts, np.int64), np.asarray(segments.ends, np.int64)
+    rows = np.repeat(np.arange(nz * ny, dtype=np.int64), np.diff(offsets))
+    lengths = ends - starts + 1
+    x = ranges(starts, lengths)
+    row = np.repeat(rows, lengths)
+    return build_from_voxels(np.stack([x, row % ny, row // ny], axis=1), segments.shape)
+
+
+def build_from_voxels(points, shape):
+    """The region octree of the voxels ``points`` (``(N, 3)`` x, y, z) of a ``shape = (nz, ny, nx)`` grid.
+
+    Bottom-up over Morton codes: a cell is black when its eight children are, grey when it holds a black voxel
+    but is not black; a node is kept when its parent is grey.  Nodes are stored level by level, each grey
+    node's children together in label order (label = 7 - the child's Morton digit), so a level is its cells in
+    descending Morton order.
+    """
+    n = max(0, int(np.ceil(np.log2(max(shape)))))
+    codes = _distinct(np.sort(morton(points)))
+    full, occupied = [None] * (n + 1), [None] * (n + 1)
+    full[n] = occupied[n] = codes
+    for k in range(n, 0, -1):                       # cells of level k - 1: full when all 8 children are
+        parents = full[k] >> 3
+        first = np.flatnonzero(np.r_[True, parents[1:] != parents[:-1]]) if len(parents) else parents
+        full[k - 1] = parents[first][np.diff(np.r_[first, len(parents)]) == 8]
+        occupied[k - 1] = _distinct(occupied[k] >> 3)
     colors, levels, origins, firsts = [], [], [], []
-    cells = np.zeros((1, 3), np.int64)  # (x, y, z) in units of the level's cell
+    cells = np.zeros(1, np.int64)                   # this level's cells, Morton codes at its resolution
     start = 0
     for k in range(n + 1):
-        x, y, z = cells.T
-        color = np.where(full[k][z, y, x], BLACK, np.where(empty[k][z, y, x], WHITE, GREY)).astype(np.uint8)
-        grey = np.flatnonzero(color == GREY)
+        black = _member(cells, full[k])
+        grey = _member(cells, occupied[k]) & ~black
+        color = np.where(black, BLACK, np.where(grey, GREY, WHITE)).astype(np.uint8)
+        grey = np.flatnonzero(grey)
         first = np.full(len(cells), -1, np.int64)
         first[grey] = start + len(cells) + 8 * np.arange(len(grey))
         colors.append(color)
         levels.append(np.full(len(cells), k, np.uint8))
-        origins.append(cells << (n - k))
+        origins.append(unmorton(cells) << (n - k))
         firsts.append(first)
         start += len(cells)
-        cells = (2 * cells[grey][:, None, :] + CHILD_OFFSETS[None]).reshape(-1, 3)
+        cells = ((cells[grey] << 3)[:, None] + np.arange(7, -1, -1)).ravel()
         if not len(cells):
             break
-    return RegionOctree(n, tuple(mask.shape), np.concatenate(colors), np.concatenate(levels),
+    return RegionOctree(n, tuple(shape), np.concatenate(colors), np.concatenate(levels),
                         np.concatenate(origins), np.concatenate(firsts))
+
+
+def _distinct(sorted_values):
+    """The distinct values of a sorted array."""
+    return sorted_values[np.r_[True, sorted_values[1:] != sorted_values[:-1]]] if len(sorted_values) else \
+        sorted_values
+
+
+def _member(values, sorted_set):
+    """Which of ``values`` are in the sorted array ``sorted_set``."""
+    if not len(sorted_set):
+        return np.zeros(len(values), bool)
+    found = np.minimum(np.searchsorted(sorted_set, values), len(sorted_set) - 1)
+    return sorted_set[found] == values
 
 
 def _codes_of(tree, nodes):
@@ -300,25 +400,25 @@ def codes_to_mask(codes, n):
     return mask
 
 
-MAGIC = "voxrender-octree-1"
+def sections(tree):
+    """The region octree, its linear octree and the face adjacency of its white leaves as named arrays, for a
+    ``.vxs`` file (:func:`voxrender.segments.save`); :func:`from_sections` maps them back without copying."""
+    arrays = {"octree_n": np.array([tree.n], "<i8"), "octree_color": np.asarray(tree.color, "u1"),
+              "octree_level": np.asarray(tree.level, "u1"), "octree_origin": np.asarray(tree.origin, "<i4"),
+              "octree_first_child": np.asarray(tree.first_child, "<i8"),
+              "octree_linear": np.asarray(tree.linear, "u1")}
+    for kind, tables in (("white", tree.white_to_white), ("black", tree.white_to_black)):
+        for direction, table in enumerate(tables):
+            arrays[f"octree_{kind}{direction}_indptr"] = np.asarray(table.indptr, "<i8")
+            arrays[f"octree_{kind}{direction}_indices"] = np.asarray(table.indices, "<i8")
+    return arrays
 
 
-def save(tree, path):
-    """Write a region octree (and its linear octree) to ``path`` (.vxo, NumPy's npz), atomically."""
-    with atomic_output(path) as tmp, open(tmp, "wb") as f:
-        np.savez(f, magic=np.array(MAGIC), n=tree.n, shape=np.array(tree.shape), color=tree.color,
-                 level=tree.level, origin=tree.origin, first_child=tree.first_child, linear=linear_octree(tree))
-
-
-def load(path):
-    """Read a region octree written by :func:`save`."""
-    try:
-        with np.load(Path(path), allow_pickle=False) as data:
-            if str(data["magic"]) != MAGIC:
-                raise InputError(f"{path} is not a voxrender octree (.vxo)")
-            return RegionOctree(int(data["n"]), tuple(int(v) for v in data["shape"]), data["color"], data["level"],
-                                data["origin"], data["first_child"])
-    except InputError:
-        raise
-    except (OSError, ValueError, KeyError) as exc:
-        raise InputError(f"{path} is not a readable voxrender octree (.vxo): {type(exc).__name__}") from None
+def from_sections(arrays, shape):
+    """The :class:`RegionOctree` kept in a ``.vxs`` file's ``arrays`` (see :func:`sections`), or ``None`` when it
+    holds none; ``shape`` is the object's grid."""
+    if "octree_color" not in arrays:
+        return None
+    n = int(arrays["octree_n"][0])
+    return RegionOctree(n, tuple(shape), arrays["octree_color"], arrays["octree_level"],
+                        arrays["octree_origin"].reshape(-1, 3), arrays["octree_first_child"], stored=arrays)

@@ -64,13 +64,15 @@ class PrepOptions:
 
 
 def is_segments_file(path):
-    return Path(path).suffix.lower() == ".vxs"
+    """An encoded object: ``.vxs``, or ``.vxo`` (a ``.vxs`` that also keeps the region octree)."""
+    return Path(path).suffix.lower() in (".vxs", ".vxo")
 
 
 @dataclass
 class Encoded:
     """An encoded object: its segments (with their surface normals), the seconds spent loading (``load``) and
-    preparing (``prepare``) them, and the region octree, built on first use and kept (:meth:`octree`)."""
+    preparing (``prepare``) them, and the region octree, read from the file that keeps it or built on first use,
+    and kept (:meth:`octree`)."""
 
     segments: segments.Segments
     seconds: dict = field(default_factory=dict)
@@ -79,10 +81,23 @@ class Encoded:
     def octree(self):
         """The region octree of the object (built now if it has not been)."""
         if self._octree is None:
-            from .octree import build   # scipy.sparse: only for the octree methods
+            from .octree import build_from_segments
 
-            self._octree = build(self.segments.to_mask())
+            self._octree = build_from_segments(self.segments)
         return self._octree
+
+    @property
+    def has_octree(self):
+        """Whether the region octree is at hand (read from the file, or built)."""
+        return self._octree is not None
+
+    def save(self, path, octree=False):
+        """Write the object to a ``.vxs`` file; with ``octree``, also its region octree, linear octree and the
+        face adjacency of its leaves (built now if they have not been), so that octree methods rendering from
+        the file pay only their traversal."""
+        from .octree import sections
+
+        segments.save(self.segments, path, sections(self.octree()) if octree else None)
 
     def tree_for(self, method):
         """The region octree when ``method`` traverses one (see :meth:`octree`), else ``None``."""
@@ -119,7 +134,12 @@ def load_segments(path, read=None, prepare=None, progress=None):
     if is_segments_file(path):
         if not Path(path).is_file():
             raise InputError(f"no such file: {path}")
-        return Encoded(segments.load(path), {"load": time.perf_counter() - started, "prepare": 0.0})
+        from .octree import from_sections
+
+        header, arrays = segments.read_sections(path)
+        encoded = segments.from_sections(header, arrays, path)
+        return Encoded(encoded, {"load": time.perf_counter() - started, "prepare": 0.0},
+                       from_sections(arrays, encoded.shape))
     volume = read.read(path, progress)
     loaded = time.perf_counter()
     meta = {"source": str(path), "input_shape": list(volume.shape), "input_spacing": list(volume.spacing)}

@@ -26,7 +26,7 @@ import numpy as np
 from .errors import InputError
 from .output import atomic_output
 
-__all__ = ["Segments", "encode", "encode_labels", "save", "load"]
+__all__ = ["Segments", "encode", "encode_labels", "save", "load", "read_sections", "from_sections", "is_mapped"]
 
 MAGIC = b"VOXRENDER-SEGMENTS 1\n"
 _ALIGN = 64
@@ -194,10 +194,12 @@ def encode_labels(label_map, spacing=(1.0, 1.0, 1.0), meta=None):
     return result
 
 
-def save(segments, path):
-    """Write ``segments`` to a ``.vxs`` file (atomically)."""
+def save(segments, path, sections=None):
+    """Write ``segments`` to a ``.vxs`` file (atomically), with further named arrays ``sections`` (e.g. the
+    region octree's, :func:`voxrender.octree.sections`), memory-mapped again by :func:`read_sections`."""
     arrays = {"offsets": np.asarray(segments.offsets, "<i8"), "starts": np.asarray(segments.starts, "<i4"),
               "ends": np.asarray(segments.ends, "<i4")}
+    arrays.update({name: np.asarray(array).ravel() for name, array in (sections or {}).items()})
     if segments.labels is not None:
         arrays["labels"] = np.asarray(segments.labels, "<u2")
     meta = dict(segments.meta)
@@ -220,24 +222,20 @@ def save(segments, path):
         f.truncate(data_start + position)
 
 
-def load(path):
-    """Memory-map a ``.vxs`` file written by :func:`save`.
-
-    >>> import tempfile, os
-    >>> path = os.path.join(tempfile.mkdtemp(), "ball.vxs")
-    >>> save(encode(np.ones((2, 2, 2), bool), meta={"threshold": 1}), path)
-    >>> load(path).voxel_count
-    8
-    """
+def read_sections(path):
+    """The header and the memory-mapped arrays of a ``.vxs`` file: ``(header, {name: array})``; each array is
+    a view of the file's mapping (:func:`is_mapped`), read from disk as it is used."""
     path = Path(path)
     try:
         with open(path, "rb") as f:
-            if f.read(len(MAGIC)) != MAGIC:
-                raise InputError(f"{path} is not a voxrender segments file (.vxs)")
+            start = f.read(len(MAGIC))
+            if start != MAGIC:
+                older = " written by an older voxrender; encode it again" if start.startswith(b"PK") else ""
+                raise InputError(f"{path} is not a voxrender segments file (.vxs){older}")
             header_length = int(np.frombuffer(f.read(8), "<u8")[0])
             header = json.loads(f.read(header_length))
         data_start = -(-(len(MAGIC) + 8 + header_length) // _ALIGN) * _ALIGN
-        raw = np.memmap(path, np.uint8, mode="r")
+        raw = np.asarray(np.memmap(path, np.uint8, mode="r"))   # plain views of the mapping: no memmap overhead
         arrays = {}
         for name, spec in header["arrays"].items():
             begin = data_start + spec["offset"]
@@ -247,6 +245,32 @@ def load(path):
         raise
     except (OSError, ValueError, KeyError, IndexError, TypeError) as exc:
         raise InputError(f"{path} is a damaged .vxs file ({type(exc).__name__}); encode it again") from None
+    return header, arrays
+
+
+def is_mapped(array):
+    """Whether ``array`` is a view of a memory-mapped file."""
+    while array is not None:
+        if isinstance(array, np.memmap):
+            return True
+        array = getattr(array, "base", None)
+    return False
+
+
+def load(path):
+    """Memory-map a ``.vxs`` file written by :func:`save`.
+
+    >>> import tempfile, os
+    >>> path = os.path.join(tempfile.mkdtemp(), "ball.vxs")
+    >>> save(encode(np.ones((2, 2, 2), bool), meta={"threshold": 1}), path)
+    >>> load(path).voxel_count
+    8
+    """
+    return from_sections(*read_sections(path), path)
+
+
+def from_sections(header, arrays, path):
+    """The :class:`Segments` of a ``.vxs`` file's header and arrays (:func:`read_sections`)."""
     shape = tuple(header["shape"])
     if arrays["offsets"].size != shape[0] * shape[1] + 1 or arrays["starts"].size != arrays["offsets"][-1]:
         raise InputError(f"{path} is a damaged .vxs file (index and runs disagree); encode it again")

@@ -68,7 +68,7 @@ def region_octree(segments, view, clip=None, tree=None):
     with active clip limits, the octree of the clipped object."""
     if clip is not None and clip.active:
         return octree.build(clip.apply_mask(segments.to_mask(), view))
-    return tree if tree is not None else octree.build(segments.to_mask())
+    return tree if tree is not None else octree.build_from_segments(segments)
 
 
 def _new_stats(tree):

@@ -77,22 +77,24 @@ def seen_from_the_front(tree, axes):
     >>> int(seen.sum()), int(faces[1 + 0]), bool(lit[0])   # seven white voxels; all 3 faces of label 0 open
     (7, 7, True)
     """
-    from scipy.sparse import csr_matrix                     # imported here: slow to load, and only needed here
-    from scipy.sparse.csgraph import breadth_first_order
-
     behind = _behind(axes)
     white = tree.white_leaves                               # the search runs on their numbers 0..len - 1
-    sources = np.searchsorted(white, _white_leaves_in_front(tree, axes))
-    start = csr_matrix((np.ones(len(sources)), sources, np.r_[np.zeros(len(white) + 1, np.int64), len(sources)]),
-                       shape=(len(white) + 1, len(white) + 1))    # the spare row steps onto the front
-    graph = sum((tree.white_to_white[direction] for direction in behind), start)
-    reached = breadth_first_order(graph, len(white), directed=True, return_predecessors=False)
-    rows = np.sort(reached[reached < len(white)])
+    reached = np.zeros(len(white), bool)
+    slot = np.zeros(len(white), np.int64)                   # to keep one of each leaf a wave reaches twice
+    wave = np.searchsorted(white, _white_leaves_in_front(tree, axes))
+    reached[wave] = True
+    while len(wave):                                        # breadth first, one wave of leaves at a time
+        found = np.concatenate([tree.white_to_white[direction].neighbours(wave) for direction in behind])
+        found = found[~reached[found]]
+        slot[found] = np.arange(len(found))
+        wave = found[slot[found] == np.arange(len(found))]
+        reached[wave] = True
+    rows = np.flatnonzero(reached)
     seen = np.zeros(len(tree.color), bool)
     seen[white[rows]] = True
     faces = np.zeros(len(tree.color), np.uint8)
     for i, direction in enumerate(behind):
-        faces[tree.white_to_black[direction][rows].indices] |= np.uint8(1 << i)
+        faces[tree.white_to_black[direction].neighbours(rows)] |= np.uint8(1 << i)
     lit = seen | (faces != 0)
     for level in range(tree.n, 0, -1):                       # up to the ancestors
         low, high = tree.level_starts[level], tree.level_starts[level + 1]

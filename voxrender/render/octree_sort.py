@@ -63,7 +63,7 @@ def recode(codes, n, vpn):
 
 def voxel_codes(tree):
     """The code Q of every voxel of every black octant (full octants broken into voxels), in code order."""
-    digits = octree.linear_octree(tree)
+    digits = tree.linear
     prefix = np.zeros(len(digits), np.int64)
     below = np.zeros(len(digits), np.int64)
     for d in range(tree.n):
