@@ -116,3 +116,13 @@ def test_a_window_keeps_both_bounds_through_resampling():
                                    [False, False, True, True, True, False, False])
         assert info["threshold"] == "200:300"
     assert prep.binarize(Volume(values, (1, 1, 1)), Window(None, 100))[0][:, 1, 1].tolist() == [True, False, False, False]
+
+
+def test_a_label_map_is_resampled_to_the_nearest_label():
+    from voxrender.prep import label_map
+
+    values = np.zeros((3, 2, 2), np.uint16)
+    values[:, 0, 0] = [1, 2, 3]                     # slices 3 mm apart: grid points at 0, 1/3, 2/3, 1 ... 2 slices
+    labels, info = label_map(Volume(values, (1, 1, 3)))
+    assert labels[:, 0, 0].tolist() == [1, 1, 2, 2, 2, 3, 3] and info["labels"] == [1, 2, 3]
+    assert labels.dtype == np.uint16 and info["spacing"] == (1.0, 1.0, 1.0)
