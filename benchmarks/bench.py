@@ -355,7 +355,7 @@ def bench_octree(objects, repeat, size=512):
     for name, (encoded, scale) in objects.items():
         if id(encoded) not in one_off:        # timed on a fresh tree; the renders use the one kept with the object
             started = time.perf_counter()
-            fresh = octree.build(encoded.segments.to_mask())
+            fresh = octree.build_from_segments(encoded.segments)
             built = time.perf_counter()
             fresh.white_to_white, fresh.white_to_black, fresh.parent
             one_off[id(encoded)] = {"octree_s": built - started, "adjacency_s": time.perf_counter() - built}
@@ -460,6 +460,21 @@ def markdown(results):
                              f"{row['leaks']:,} | {row['misses']:,} |")
     if results.get("octree"):
         lines += _octree_tables(results["octree"])
+    if results.get("octree_files"):
+        files = results["octree_files"]
+        lines += ["", "Octree methods from a `.vxo` (the octree and its face adjacency kept in the file), a fresh "
+                  "`voxrender render` each time, 512 x 512, scale 1: the render seconds each reports (medians of "
+                  f"{results['repeat']}); writing the `.vxo` took {files['save_s']:.2f} s", "",
+                  "| VPN | octree-btf | octree-ftb | octree-btf/octree-ftb |", "|---|---|---|---|",
+                  *(f"| ({', '.join(map(str, row['vpn']))}) | {row['octree-btf']:.3f} | {row['octree-ftb']:.3f} | "
+                    f"{row['octree-btf'] / row['octree-ftb']:.2f} |" for row in files["rows"])]
+    if results.get("octree_build"):
+        big = results["octree_build"]
+        peak = f"{big['peak_mb']:.0f} MB peak"
+        lines += ["", f"The octree of the head stacked four times ({' x '.join(map(str, big['grid_xyz']))}, "
+                  f"{big['voxels']:,} object voxels): the region octree built in {big['build_s']:.2f} s; "
+                  f"`voxrender encode big.vxs --octree` (octree, face adjacency, linear codes, written) "
+                  f"{big['encode_octree_wall_s']:.2f} s wall, {peak}"]
     if results.get("sorted_octree"):
         lines += ["", "Sorted linear octree against the z-buffer (the linear-octree paper's Table 4; solid cubes, "
                   "256 x 256, median seconds):", "",
@@ -495,6 +510,60 @@ def markdown(results):
     return "\n".join(lines)
 
 
+def _cli(*args):
+    return [sys.executable, "-m", "voxrender.cli", *map(str, args)]
+
+
+def bench_octree_files(encoded, repeat, size=512):
+    """The octree methods as a user runs them: ``voxrender render x.vxo`` in a fresh process, the octree and
+    its face adjacency read from the file; the render seconds each reports (medians of ``repeat``, the two
+    methods alternating), at the VPNs of Zhao and Davis."""
+    from voxrender.view import angles_from_vpn
+
+    rows = []
+    with tempfile.TemporaryDirectory() as folder:
+        vxo = Path(folder) / "object.vxo"
+        started = time.perf_counter()
+        encoded.save(vxo, octree=True)
+        save_s = time.perf_counter() - started
+        for vpn in OCTREE_VPNS:
+            seconds = {m: [] for m in ("octree-btf", "octree-ftb")}
+            for _ in range(repeat):
+                for method in seconds:
+                    report = Path(folder) / "stats.json"
+                    subprocess.run(_cli("render", vxo, "--method", method, "--vpn", ",".join(map(str, vpn)),
+                                        "--scale", "1", "--size", size, "--stats-json", report,
+                                        "-o", Path(folder) / "p.png"), check=True, capture_output=True)
+                    seconds[method].append(json.loads(report.read_text())["seconds"]["render"])
+            rows.append({"vpn": list(vpn), **{m: statistics.median(v) for m, v in seconds.items()}})
+    return {"save_s": save_s, "rows": rows}
+
+
+def bench_octree_build(encoded, copies=4):
+    """``voxrender encode big.vxs --octree`` on the head stacked ``copies`` times along z (512 x 512 x 936 at
+    four): wall seconds and peak memory of the process, and the build alone in this one."""
+    from voxrender import octree
+
+    mask = encoded.segments.to_mask()
+    big = segments.encode(np.concatenate([mask] * copies, axis=0), encoded.segments.spacing, {"threshold": THRESHOLD})
+    del mask
+    started = time.perf_counter()
+    octree.build_from_segments(big)
+    build_s = time.perf_counter() - started
+    with tempfile.TemporaryDirectory() as folder:
+        segments.save(big, Path(folder) / "big.vxs")
+        # the command in a fresh interpreter that reports its own peak (a forked child's would count ours)
+        measure = ("import resource, sys\nfrom voxrender.cli import main\ntry:\n    main(sys.argv[1:])\nfinally:\n"
+                   "    print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)")
+        started = time.perf_counter()
+        done = subprocess.run([sys.executable, "-c", measure, "encode", str(Path(folder) / "big.vxs"), "--octree",
+                               "-o", str(Path(folder) / "big.vxo")], check=True, capture_output=True, text=True)
+        wall_s = time.perf_counter() - started
+        peak_kb = int(done.stderr.strip().splitlines()[-1])
+    return {"grid_xyz": list(big.shape[::-1]), "voxels": big.voxel_count, "build_s": build_s,
+            "encode_octree_wall_s": wall_s, "peak_mb": peak_kb / 1024}
+
+
 def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
     """All sections; returns the results dict."""
     path = Path(data) / "vhf_head"
@@ -527,6 +596,8 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
                                     "checkerboard 128^3, the volume fitted": (Encoded(segments.encode(checkerboard())),
                                                                                None)},
                                    repeat),
+            "octree_files": bench_octree_files(encoded, repeat),
+            "octree_build": bench_octree_build(encoded),
             "sorted_octree": bench_sorted_octree(repeat),
             "raycast": bench_raycast(min(repeat, 3), {
                 "thin shell 128^3": (segments.encode(thin_shell()), View(30.0, 10.0, 0.0, (256, 256), 1.5)),
