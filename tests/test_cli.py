@@ -168,7 +168,12 @@ def test_raycast_method_from_the_command_line(tmp_path, cube_folder):
                  "--size", 40, "-o", tmp_path / "r.png", "--stats-json", stats)
     assert result.exit_code == 0, result.output
     report = json.loads(stats.read_text())["stats"]
-    assert report["connectivity"] == "26" and report["steps_6"] == 0 and "leaks" in report
+    assert report["connectivity"] == "26" and report["steps_6"] == 0 and "leaks" not in report
+    result = run("render", cube_folder, "--threshold", 500, "--method", "raycast", "--connectivity", "26",
+                 "--compare-rays", "--size", 40, "-o", tmp_path / "r.png", "--stats-json", stats)
+    assert result.exit_code == 0 and "leaks" in json.loads(stats.read_text())["stats"], result.output
+    assert_bad_input(run("render", cube_folder, "--threshold", 500, "--compare-rays", "-o", tmp_path / "x.png"),
+                     "--compare", "ftb")
 
 
 # ------------------------------------------------------------------ bad input

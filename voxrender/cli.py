@@ -47,7 +47,7 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 # ---------------------------------------------------------------- flags and their parsers
 
 # Library parameters whose flag is not "--" + the name with dashes.
-FLAGS = {"picture": "--pattern", "depth": "--depth-out", "normals": "--normals-out", "inputs": "INPUT",
+FLAGS = {"picture": "--pattern", "depth": "--depth-out", "normals": "--normals-out", "inputs": "INPUT", "compare": "--compare-rays",
          "views": "the manifest's views"}
 
 
@@ -106,6 +106,8 @@ def _render_options(options):
     clip = Clip(*(parse.clip_range(options[f"clip_{axis}"], f"clip_{axis}") if options[f"clip_{axis}"] else None
                   for axis in "xyz"), options["cut_depth"])
     method_options = {"connectivity": options["connectivity"]} if options["connectivity"] else {}
+    if options["compare_rays"]:
+        method_options["compare"] = True
     colour = parse.colour(options["colour"], "colour") if options["colour"] else \
         colours.preset(options["preset"]).colour if options.get("preset") else (255, 255, 255)
     table = colours.read_colour_table(options["colours"]) if options["colours"] else None
@@ -199,6 +201,9 @@ def _render_options_decorator(command):
         click.option("--connectivity", type=click.Choice(CONNECTIVITIES),
                      help="Discrete rays of --method raycast: 6, 26, or 26 switching to 6 near the object "
                           "(default adaptive)."),
+        click.option("--compare-rays", is_flag=True,
+                     help="With --method raycast: also cast 6-rays and count the late hits, leaks and misses "
+                          "(--stats-json); costs a second pass."),
         click.option("--size", default="512", show_default=True, metavar="N|WxH", help="Image size in pixels."),
         click.option("--scale", type=float, help="Pixels per voxel (default: see --fit)."),
         click.option("--fit", type=click.Choice(["object", "volume"]), default="object", show_default=True,
