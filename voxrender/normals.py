@@ -104,13 +104,13 @@ class SurfaceNormals:
         points = np.asarray(points, dtype=np.float64)
         nz, ny, nx = self.shape
         index, packed = np.asarray(self.index), np.asarray(self.packed)     # plain arrays, not memory maps
-        total = np.zeros((len(points), 3), np.float32)
         if not len(index):
             return np.full((len(points), 3), np.nan, np.float32)
         base = np.floor(points).astype(np.int64)
         fraction = (points - base).astype(np.float32)
         x, y, z = base.T
         top = len(index) - 1
+        pixels, slots, weights = [], [], []
         for dz, dy in itertools.product((0, 1), repeat=2):
             row_ok = (y + dy >= 0) & (y + dy < ny) & (z + dz >= 0) & (z + dz < nz)
             linear = ((z + dz) * ny + (y + dy)) * nx + x
@@ -121,7 +121,12 @@ class SurfaceNormals:
             after = np.minimum(slot + first, top)
             second = row_ok & (x + 1 < nx) & (index[after] == linear + 1)
             for found, where, weight in ((first, slot, 1 - fraction[:, 0]), (second, after, fraction[:, 0])):
-                total[found] += (weight * weight_yz)[found, None] * octahedral_decode(packed[where[found]])
+                pixels.append(np.flatnonzero(found))
+                slots.append(where[found])
+                weights.append((weight * weight_yz)[found])
+        pixels, weights = np.concatenate(pixels), np.concatenate(weights)
+        normals = octahedral_decode(packed[np.concatenate(slots)])          # all corners in one go
+        total = np.stack([np.bincount(pixels, weights * normals[:, k], len(points)) for k in range(3)], axis=1)
         length = np.linalg.norm(total, axis=1, keepdims=True)
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.where(length > 1e-12, total / length, np.nan).astype(np.float32)

@@ -26,9 +26,10 @@ def _depth_range(depth):
 
 def _depth_cue(depth, strength):
     """``covered`` and a factor falling linearly from 1 at the nearest covered pixel to ``1 - strength`` at
-    the farthest."""
+    the farthest (of the type of ``depth``)."""
     covered, near, far = _depth_range(depth)
-    return covered, 1 - strength * np.where(covered, (np.where(covered, depth, near) - near) / (far - near), 0)
+    step = np.asarray(strength / (far - near), depth.dtype)
+    return covered, np.where(covered, 1 - (depth - np.asarray(near, depth.dtype)) * step, 0).astype(depth.dtype)
 
 
 def light_direction(light):
@@ -144,8 +145,9 @@ SHADINGS = ("gradient", "depth-gradient", "depth")
 
 def blinn_phong(normals, depth, light=HEADLIGHT, ambient=0.12, diffuse=0.78, specular=0.22, shininess=24.0,
                 depth_cue=0.2):
-    """Brightness in [0, 1] of unit normals ``(H, W, 3)`` (image space) lit by a directional light, seen from
-    ``-Z'``: ambient, Lambert diffuse and a Blinn-Phong highlight, darkened a little with depth.
+    """Brightness in [0, 1] of unit normals ``(..., 3)`` (image space) at depths ``(...)`` lit by a directional
+    light, seen from ``-Z'``: ambient, Lambert diffuse and a Blinn-Phong highlight, darkened a little with depth
+    (from the nearest to the farthest finite depth given); 0 where the depth is infinite.  Float32 throughout.
 
     >>> flat = np.zeros((1, 1, 3)); flat[..., 2] = -1
     >>> round(float(blinn_phong(flat, np.zeros((1, 1)), light=(0, 0, -1))[0, 0]), 3)
@@ -155,11 +157,16 @@ def blinn_phong(normals, depth, light=HEADLIGHT, ambient=0.12, diffuse=0.78, spe
     halfway = light + np.array([0, 0, -1], np.float32)
     halfway = halfway / max(float(np.linalg.norm(halfway)), 1e-6)
     n = np.nan_to_num(np.asarray(normals, dtype=np.float32))
-    lambert = np.clip(n @ light, 0, 1)
-    highlight = np.clip(n @ halfway, 0, 1) ** shininess
-    covered, cue = _depth_cue(depth, depth_cue)
-    total = ambient + diffuse * lambert + specular * highlight
-    return np.where(covered, np.clip(total, 0, 1) * cue, 0.0)
+    total = np.clip(n @ light, 0, 1)
+    total *= np.float32(diffuse)
+    highlight = np.clip(n @ halfway, 0, 1)
+    np.power(highlight, np.float32(shininess), out=highlight)
+    total += np.float32(specular) * highlight + np.float32(ambient)
+    np.clip(total, 0, 1, out=total)
+    covered, cue = _depth_cue(np.asarray(depth, np.float32), depth_cue)
+    total *= cue
+    total[~covered] = 0
+    return total
 
 
 def ambient_occlusion(depth, scale=1.0, radius=3.0, directions=8, steps=3):
@@ -228,23 +235,30 @@ def shade(depth, mode="gradient", scale=1.0, light=HEADLIGHT, colour=(1.0, 1.0, 
     >>> rgb.tolist()
     [[[255, 255, 255], [0, 0, 255]]]
     """
+    covered = np.flatnonzero(np.isfinite(depth))          # the work is on the covered pixels only
     if mode == "gradient":
-        missing = np.isfinite(depth) if normals is None else np.isfinite(depth) & ~np.isfinite(normals).all(axis=2)
+        lit = None if normals is None else np.asarray(normals, np.float32).reshape(-1, 3)[covered]
+        missing = np.ones(len(covered), bool) if lit is None else ~np.isfinite(lit).all(axis=1)
         if missing.any():                                   # the depth gradient where no normal is known
-            from_depth = surface_normals(depth, scale, 0.7)
-            normals = from_depth if normals is None else np.where(missing[..., None], from_depth, normals)
-        brightness = blinn_phong(normals, depth, light)
+            from_depth = surface_normals(depth, scale, 0.7).reshape(-1, 3)[covered].astype(np.float32)
+            lit = from_depth if lit is None else np.where(missing[:, None], from_depth, lit)
+        brightness = blinn_phong(lit, np.asarray(depth, np.float32).ravel()[covered], light)
     elif mode == "depth-gradient":
-        brightness = gradient_shading(depth, scale, light)
+        brightness = gradient_shading(depth, scale, light).ravel()[covered]
     elif mode == "depth":
-        brightness = depth_shading(depth)
+        brightness = depth_shading(depth).ravel()[covered]
     else:
         raise InputError(f"unknown shading {mode!r}; choose {', '.join(SHADINGS)}", parameter="shading")
+    brightness = np.asarray(brightness, np.float32)
     if occlusion is not None:
-        brightness = brightness * (1 - 0.6 * occlusion)
-    rgb = brightness[..., None] * np.asarray(colour, dtype=float) * 255
-    rgb = np.where(np.isfinite(depth)[..., None], rgb, np.asarray(background, dtype=float))
-    return np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
+        brightness *= 1 - np.float32(0.6) * np.asarray(occlusion, np.float32).ravel()[covered]
+    colour = np.asarray(colour, np.float32)
+    colour = colour.reshape(-1, 3)[covered] if colour.ndim == 3 else colour      # a colour per pixel, or one
+    rgb = np.empty((depth.size, 3), np.uint8)
+    rgb[:] = np.asarray(background, np.uint8)
+    value = brightness[:, None] * (colour * np.float32(255))
+    rgb[covered] = np.clip(np.rint(value), 0, 255)
+    return rgb.reshape(*depth.shape, 3)
 
 
 def normals_to_rgb(normals):
