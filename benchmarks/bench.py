@@ -555,9 +555,12 @@ def bench_octree_build(encoded, copies=4):
     build_s = time.perf_counter() - started
     with tempfile.TemporaryDirectory() as folder:
         segments.save(big, Path(folder) / "big.vxs")
-        # the command in a fresh interpreter that reports its own peak (a forked child's would count ours)
-        measure = ("import resource, sys\nfrom voxrender.cli import main\ntry:\n    main(sys.argv[1:])\nfinally:\n"
-                   "    print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)")
+        # the command in a fresh interpreter that reports its own peak: VmHWM of its memory map (ru_maxrss would
+        # keep the high-water mark of the forked copy of this process from before its exec)
+        measure = ("import re, resource, sys\nfrom voxrender.cli import main\ntry:\n    main(sys.argv[1:])\n"
+                   "finally:\n    try:\n        peak = re.search(r'VmHWM:\\s*(\\d+)', open('/proc/self/status').read())[1]\n"
+                   "    except (OSError, TypeError):\n        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss\n"
+                   "    print(peak, file=sys.stderr)")
         started = time.perf_counter()
         done = subprocess.run([sys.executable, "-c", measure, "encode", str(Path(folder) / "big.vxs"), "--octree",
                                "-o", str(Path(folder) / "big.vxo")], check=True, capture_output=True, text=True)
