@@ -191,3 +191,19 @@ def test_label_options_with_a_single_object_are_refused(tmp_path, ct_file, label
         assert not (tmp_path / "o.png").exists()
     assert_bad_input(run("render", ct_file, "--labels-from", tmp_path / "none.nii.gz", "-o", tmp_path / "o.png"),
                      "--labels-from", "none.nii.gz")
+
+
+def test_a_sheet_of_views_by_labels(tmp_path, label_file, ct_file):
+    result = run("sheet", label_file, "--labels", "--per-label", "--view", "left", "--view", "anterior",
+                 "--size", "48", "-o", tmp_path / "s.png")
+    assert result.exit_code == 0 and "4 rows x 2 views" in result.output, result.output
+    sheet = iio.imread(tmp_path / "s.png").reshape(-1, 3).astype(float)
+    lit = sheet[sheet.sum(axis=1) > 60]
+    hues = lit / lit.sum(axis=1, keepdims=True)
+    for label in (2, 3):                                     # each label is drawn in its own colour
+        colour = np.array(palette([label])[label], float)
+        assert (np.abs(hues - colour / colour.sum()).max(axis=1) < 0.03).sum() > 100, label
+    assert_bad_input(run("sheet", ct_file, "--threshold", "500", "--per-label", "-o", tmp_path / "t.png"),
+                     "--per-label", "labels")
+    assert_bad_input(run("sheet", label_file, label_file, "--labels", "--per-label", "-o", tmp_path / "t.png"),
+                     "one input")

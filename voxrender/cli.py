@@ -21,7 +21,7 @@ from . import __version__, batch, colours, compare, io, lines, octree, orient, o
 from .sheet import render_sheet, sheet
 from .errors import InputError
 from .picture import Outputs, RenderOptions, about, picture, write_outputs
-from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
+from .pipeline import Encoded, PrepOptions, ReadOptions, is_segments_file, load_segments
 from .render import DEFAULT_METHOD, METHODS, Clip
 from .render.raycast import CONNECTIVITIES
 from .shade import HEADLIGHT, SHADINGS
@@ -499,10 +499,12 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
 @click.option("--view", "views", multiple=True, type=click.Choice(list(PRESETS)), help="A named view (repeatable).")
 @click.option("--angles", multiple=True, metavar="A,B,G", help="alpha,beta,gamma in degrees (repeatable).")
 @click.option("--methods", metavar="M1,M2,...", help="Rows of methods (one input): compare the algorithms.")
+@click.option("--per-label", is_flag=True, help="Rows of labels (one input with labels): all, then each alone.")
 @_render_options_decorator
-def sheet_command(inputs, output_path, views, angles, methods, depth_out, depth_png, stats_json, normals_out,
-                  normals_png, labels_out, label_png, **options):
-    """Lay out pictures in a grid: one input's views x methods (--methods), or several inputs' views."""
+def sheet_command(inputs, output_path, views, angles, methods, per_label, depth_out, depth_png, stats_json,
+                  normals_out, normals_png, labels_out, label_png, **options):
+    """Lay out pictures in a grid: one input's views x methods (--methods) or x labels (--per-label), or several
+    inputs' views."""
     given = [flag for flag, value in (("--depth-out", depth_out), ("--depth-png", depth_png),
                                       ("--stats-json", stats_json), ("--normals-out", normals_out),
                                       ("--normals-png", normals_png), ("--labels-out", labels_out),
@@ -514,12 +516,25 @@ def sheet_command(inputs, output_path, views, angles, methods, depth_out, depth_
     columns = [(v.label, (v.alpha, v.beta, v.gamma)) for v in chosen]
     render_options = _render_options(options)
     read, prepare = _read_options(options), _prep_options(options)
+    if methods and per_label:
+        raise InputError("give --methods or --per-label, not both: a sheet has one kind of row")
+    if (methods or per_label) and len(inputs) > 1:
+        raise InputError(f"give one input for {'--methods' if methods else '--per-label'}, or several without it")
     if methods:
-        if len(inputs) > 1:
-            raise InputError("give one input to compare methods, or several inputs without --methods")
         loaded = load_segments(inputs[0], read, prepare, progress)
         rows = [(name, loaded, replace(render_options, method=name, method_options={}))
                 for name in (m.strip() for m in methods.split(",")) if name]
+    elif per_label:
+        loaded = load_segments(inputs[0], read, prepare, progress)
+        if loaded.segments.labels is None:
+            raise InputError("--per-label needs an object with labels: a label map with --labels, or --labels-from",
+                             parameter="per_label")
+        table = colours.label_colours(loaded.segments.meta.get("labels") or np.unique(loaded.segments.labels).tolist(),
+                                      loaded.segments.meta.get("label_table"), render_options.colours)
+        alone = replace(render_options, legend=False)
+        rows = [("all labels", loaded, render_options)] + [
+            (name, Encoded(loaded.segments.only(label)), replace(alone, colour=tuple(c / 255 for c in rgb)))
+            for label, (name, rgb) in table.items()]
     else:
         rows = [(path.stem or path.name, load_segments(path, read, prepare, progress), render_options)
                 for path in inputs]
