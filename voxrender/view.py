@@ -62,15 +62,19 @@ def _cos_sin(degrees):
 def angles_from_matrix(matrix):
     """Theorem 2: angles ``(alpha, beta, gamma)`` in degrees with ``rotation_matrix(...) == matrix``.
 
-    Of the two solutions the one with ``-90 <= beta <= 90`` is returned.  When
-    ``beta = +-90`` (gimbal lock) only ``alpha -+ gamma`` is determined
-    (the paper's Eq. 4): ``gamma = 0`` is chosen, so that no pre-image rotation is needed.
+    Of the two solutions, ``(alpha, beta, gamma)`` and ``(alpha + 180, 180 - beta, gamma + 180)``, the one with
+    ``gamma = 0`` is returned when there is one, so that no pre-image rotation is needed (a turntable about the
+    head's axis keeps ``gamma = 0`` all the way round), else the one with ``-90 <= beta <= 90``.  When
+    ``beta = +-90`` (gimbal lock) only ``alpha -+ gamma`` is determined (the paper's Eq. 4): ``gamma = 0`` is
+    chosen, for the same reason.
 
     >>> angles = angles_from_matrix(rotation_matrix(30, -20, 75))
     >>> [round(a, 6) for a in angles]
     [30.0, -20.0, 75.0]
     >>> [round(a, 6) for a in angles_from_matrix(rotation_matrix(10, 90, 25))]
     [-15.0, 90.0, 0.0]
+    >>> [round(a, 6) for a in angles_from_matrix(rotation_matrix(90, 150, 0))]
+    [90.0, 150.0, 0.0]
     """
     t = np.asarray(matrix, dtype=float)
     if t.shape != (3, 3) or not np.allclose(t @ t.T, np.eye(3), atol=1e-6) or np.linalg.det(t) < 0:
@@ -80,6 +84,8 @@ def angles_from_matrix(matrix):
         beta = math.asin(max(-1.0, min(1.0, sin_beta)))
         alpha = math.atan2(t[2, 1], t[2, 2])  # sin a cos b, cos a cos b with cos b > 0
         gamma = math.atan2(t[1, 0], t[0, 0])  # cos b sin g, cos b cos g
+        if abs(abs(gamma) - math.pi) < 1e-9:  # the other solution has gamma = 0
+            alpha, beta, gamma = alpha + math.pi, math.pi - beta, 0.0
     else:
         beta = math.copysign(math.pi / 2, sin_beta)
         gamma = 0.0
