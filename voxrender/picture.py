@@ -195,8 +195,11 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
     if options.legend and table is not None:
         from .marks import draw_legend
 
-        result.rgb = draw_legend(rgb, [(f"{v['label']} {v['name']}" if v["name"] != f"label {v['label']}" else
-                                        v["name"], v["colour"]) for v in result.visible_labels()])
+        def caption(entry):           # "3 liver"; an unnamed label is already "label 3"
+            named = entry["name"] != f"label {entry['label']}"
+            return f"{entry['label']} {entry['name']}" if named else entry["name"]
+
+        result.rgb = draw_legend(rgb, [(caption(v), v["colour"]) for v in result.visible_labels()])
     return result
 
 
