@@ -207,3 +207,35 @@ def test_a_sheet_of_views_by_labels(tmp_path, label_file, ct_file):
                      "--per-label", "labels")
     assert_bad_input(run("sheet", label_file, label_file, "--labels", "--per-label", "-o", tmp_path / "t.png"),
                      "one input")
+
+
+def test_several_presets_make_one_object_of_labelled_tissues(tmp_path):
+    """A CT phantom in HU: air, soft tissue (40) and a bone block (700); skin,bone labels the tissue 1, the bone 2."""
+    labels = nested()
+    values = np.where(labels > 0, 40, -1000).astype(np.int16)
+    values[labels == 3] = 700
+    ct = write_nifti(tmp_path / "hu.nii.gz", values)
+    result = run("render", ct, "--preset", "skin,bone", "--view", "left", "--size", "48", "--labels-out",
+                 tmp_path / "l.json", "--label-png", tmp_path / "l.png", "-o", tmp_path / "p.png")
+    assert result.exit_code == 0, result.output
+    listed = {v["name"]: v for v in json.loads((tmp_path / "l.json").read_text())["labels"]}
+    assert set(listed) == {"skin", "bone"}
+    assert listed["bone"]["colour"] == list(PRESETS["bone"].colour) and listed["bone"]["label"] == 2
+    picture = iio.imread(tmp_path / "p.png")
+    bone = iio.imread(tmp_path / "l.png") == 2
+    hue = np.array(PRESETS["bone"].colour, float)
+    shown = picture[bone & (picture.sum(axis=2) > 60)].astype(float)
+    assert len(shown) and np.abs(shown / shown.sum(axis=1, keepdims=True) - hue / hue.sum()).max() < 0.05
+    assert_bad_input(run("render", ct, "--preset", "skin,liver", "-o", tmp_path / "x.png"), "--preset", "liver")
+    assert_bad_input(run("render", ct, "--preset", "skin,bone", "--labels", "-o", tmp_path / "x.png"),
+                     "--preset", "not both")
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_classify_takes_the_last_window_that_holds_a_value():
+    from voxrender.io import Volume
+    from voxrender.prep import Window, classify
+
+    values = np.array([[[-1000, -200, 100, 400, 2000]]], np.int16)
+    labels, _ = classify(Volume(values, (1, 1, 1)), [Window(-300), Window(300, 1000)])
+    assert labels.tolist() == [[[0, 1, 1, 2, 1]]]

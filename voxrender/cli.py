@@ -91,8 +91,16 @@ def _prep_options(options):
     if options["preset"] and options["threshold"] is not None:
         raise InputError("give --preset or --threshold, not both (a preset is a window and a colour)",
                          parameter="preset")
+    names = [name.strip() for name in (options["preset"] or "").split(",") if name.strip()]
+    tissues = tuple((name, colours.preset(name).window, colours.preset(name).colour) for name in names)
+    if len(tissues) > 1:
+        if labels:
+            raise InputError("give several presets or labels, not both: the presets are the labels",
+                             parameter="preset")
+        crop = parse.crop(options["crop"]) if options["crop"] else None
+        return PrepOptions(None, crop, options["voxel"], options["resample"], options["min_object"], None, tissues)
     if options["preset"]:
-        threshold = colours.preset(options["preset"]).window
+        threshold = colours.preset(names[0] if names else options["preset"]).window
     elif options["threshold"] is not None:
         threshold = parse.threshold(options["threshold"])
     else:
@@ -108,8 +116,9 @@ def _render_options(options):
     method_options = {"connectivity": options["connectivity"]} if options["connectivity"] else {}
     if options["compare_rays"]:
         method_options["compare"] = True
+    presets = [name.strip() for name in (options.get("preset") or "").split(",") if name.strip()]
     colour = parse.colour(options["colour"], "colour") if options["colour"] else \
-        colours.preset(options["preset"]).colour if options.get("preset") else (255, 255, 255)
+        colours.preset(presets[0]).colour if len(presets) == 1 else (255, 255, 255)
     table = colours.read_colour_table(options["colours"]) if options["colours"] else None
     return RenderOptions(options["method"], method_options, clip if clip.active else None, options["fit"],
                          parse.size(options["size"]), options["scale"], options["supersample"], options["shading"],
@@ -174,9 +183,10 @@ def _prep_options_decorator(command):
         click.option("--threshold", metavar="VALUE|LO:HI|otsu",
                      help="Object is value >= VALUE, or LO <= value <= HI (stored units, HU for CT; a side may be "
                           "left out); default: otsu."),
-        click.option("--preset", metavar="NAME",
+        click.option("--preset", metavar="NAME[,NAME...]",
                      help="A CT tissue: its HU window and colour (bone, skin, soft-tissue, contrast-vessels, lung; "
-                          "'voxrender presets' lists them)."),
+                          "'voxrender presets' lists them); several make one object, each tissue a label "
+                          "(skin,bone: bone wins where both hold)."),
         click.option("--labels", is_flag=True,
                      help="INPUT is a label map: every non-zero label (or those of --label) an object in its own "
                           "colour."),

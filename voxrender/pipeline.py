@@ -47,6 +47,8 @@ class PrepOptions:
     ``threshold`` (a number, a :class:`~voxrender.prep.Window` or a function of the values) selects grey values;
     ``labels`` selects labels of a label map: the input itself, or a map paired with it
     (``labels.source``), and then an explicit ``threshold`` also applies to the input's grey values.
+    ``tissues`` makes one object of several value windows, each a label with its name and colour
+    (:func:`voxrender.prep.classify`).
     """
 
     threshold: float | prep.Window | Callable | None = prep.otsu_threshold
@@ -55,6 +57,7 @@ class PrepOptions:
     resample: bool = True
     min_object: int = 0
     labels: prep.LabelSelection | None = None
+    tissues: tuple = ()        # (name, Window, (r, g, b)) each: several tissues of a CT, each a label
 
     def __post_init__(self):
         if self.voxel is not None and not (self.voxel > 0 and math.isfinite(self.voxel)):
@@ -145,7 +148,17 @@ def load_segments(path, read=None, prepare=None, progress=None):
     meta = {"source": str(path), "input_shape": list(volume.shape), "input_spacing": list(volume.spacing)}
     meta.update({k: v for k, v in volume.meta.items()
                  if k in ("format", "modality", "units", "series", "orientation", "orientation_from", "reoriented")})
-    if prepare.labels is None:
+    if prepare.tissues:
+        labels, info = prep.classify(volume, [window for _, window, _ in prepare.tissues], crop=prepare.crop,
+                                     voxel=prepare.voxel, resample=prepare.resample, progress=progress)
+        table = {str(k): {"name": name, "colour": list(colour)}
+                 for k, (name, _, colour) in enumerate(prepare.tissues, 1)}
+        present = [int(v) for v in np.unique(labels) if v]
+        encoded = segments.encode_labels(labels, info["spacing"], {
+            **meta, "threshold": info["threshold"], "voxel_mm": info["voxel"], "labels": present,
+            "label_table": {k: v for k, v in table.items() if int(k) in present}})
+        encoded.normals = grey_normals(volume, labels > 0, info, prepare)
+    elif prepare.labels is None:
         mask, info = prep.binarize(volume, prepare.threshold, crop=prepare.crop, voxel=prepare.voxel,
                                    resample=prepare.resample, min_object=prepare.min_object, progress=progress)
         encoded = segments.encode(mask, info["spacing"], {**meta, "threshold": info["threshold"],

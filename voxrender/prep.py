@@ -14,7 +14,7 @@ import numpy as np
 from .errors import InputError
 
 __all__ = ["crop", "resampled_shape", "resample_slices", "resample", "otsu_threshold", "Window", "binarize",
-           "LabelSelection", "label_map"]
+           "classify", "LabelSelection", "label_map"]
 
 
 @dataclass(frozen=True)
@@ -226,6 +226,39 @@ def binarize(volume, threshold=otsu_threshold, *, crop=None, voxel=None, resampl
                          f"{high:g}; choose a threshold in that range", parameter="threshold")
     return mask, {"threshold": str(threshold) if isinstance(threshold, Window) else window.lo, "voxel": voxel,
                   "spacing": spacing}
+
+
+def classify(volume, windows, *, crop=None, voxel=None, resample=True, progress=None):
+    """Label each voxel by the value windows that hold it: the number (1, 2, ...) of the last of ``windows`` that
+    does, 0 for none; cropped and resampled as :func:`binarize` does.  Several tissues of one CT in one object
+    (skin and bone: bone, given last, wins where both windows hold a voxel).
+
+    Returns
+    -------
+    labels : ndarray of uint8, ``[z, y, x]``
+    info : dict
+        ``threshold`` (the windows as text), ``voxel`` (mm), ``spacing``.
+
+    Examples
+    --------
+    >>> from voxrender.io import Volume
+    >>> labels, info = classify(Volume(np.array([[[-1000, 0, 500]]]), (1, 1, 1)), [Window(-300), Window(300)])
+    >>> labels.tolist(), info["threshold"]
+    ([[[0, 1, 2]]], '-300:, 300:')
+    """
+    values = _crop(volume.values, crop)
+    voxel, out_shape = _grid(values.shape, volume.spacing, voxel, resample)
+    spacing = tuple(float(s) for s in volume.spacing)
+    planes = resample_slices(values, spacing, voxel, progress) if out_shape is not None else values
+    labels = np.zeros(out_shape or values.shape, np.uint8)
+    for k, plane in enumerate(planes):
+        for number, window in enumerate(windows, 1):
+            labels[k][window.select(plane)] = number
+    if not labels.any():
+        raise InputError(f"no voxel lies in {', '.join(str(w) for w in windows)}: values range from "
+                         f"{np.min(values):g} to {np.max(values):g}", parameter="preset")
+    return labels, {"threshold": ", ".join(str(w) for w in windows), "voxel": voxel,
+                    "spacing": (voxel,) * 3 if out_shape is not None else spacing}
 
 
 def _grid(shape, spacing, voxel, resample):
