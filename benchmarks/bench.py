@@ -172,25 +172,32 @@ class VtkPeer:
         return median_seconds(once, repeat)[0]
 
 
-def bench_stages(path, repeat, size=512):
+def bench_stages(path, repeat, size=512, peer=None):
     """The picture step by stage on vhf_head at 300 HU (ftb, 512 x 512, scale 1, alpha 30, beta 10), in this
-    process: render, grey-level shading (normals at the hit points and lighting), the same with ambient
-    occlusion, the paper's depth-gradient shading, and the PNG write; medians of ``repeat``."""
+    process: loading the encoded object (a memory-mapped ``.vxs``), render, grey-level shading (normals at the hit
+    points and lighting), the same with ambient occlusion, the paper's depth-gradient shading, and the PNG write;
+    the whole picture beside VTK's render of the same view (``peer``); medians of ``repeat``."""
     from voxrender import output
     from voxrender.picture import RenderOptions, picture
     from voxrender.pipeline import PrepOptions, load_segments
 
     loaded = load_segments(path, prepare=PrepOptions(threshold=THRESHOLD))
     result = {}
-    for name, options in (("gradient", RenderOptions(size=(size, size), scale=1.0)),
-                          ("gradient + ao", RenderOptions(size=(size, size), scale=1.0, ao=True)),
-                          ("depth-gradient", RenderOptions(size=(size, size), scale=1.0, shading="depth-gradient"))):
-        view = options.view(30.0, 10.0)
-        seconds = [picture(loaded.segments, view, options).seconds for _ in range(repeat)]
-        result[name] = {stage: statistics.median(s[stage] for s in seconds) for stage in ("render", "shade")}
-    rgb = picture(loaded.segments, view, RenderOptions(size=(size, size), scale=1.0)).rgb
     with tempfile.TemporaryDirectory() as folder:
+        stored = Path(folder) / "object.vxs"
+        loaded.save(stored)
+        result["load_s"] = median_seconds(lambda: load_segments(stored), repeat)[0]
+        for name, options in (("gradient", RenderOptions(size=(size, size), scale=1.0)),
+                              ("gradient + ao", RenderOptions(size=(size, size), scale=1.0, ao=True)),
+                              ("depth-gradient", RenderOptions(size=(size, size), scale=1.0,
+                                                               shading="depth-gradient"))):
+            view = options.view(30.0, 10.0)
+            seconds = [picture(loaded.segments, view, options).seconds for _ in range(repeat)]
+            result[name] = {stage: statistics.median(s[stage] for s in seconds) for stage in ("render", "shade")}
+        rgb = picture(loaded.segments, view, RenderOptions(size=(size, size), scale=1.0)).rgb
         result["write_s"] = median_seconds(lambda: output.write_png(Path(folder) / "p.png", rgb), repeat)[0]
+    if peer is not None:
+        result["vtk_s"] = peer.time(View(30.0, 10.0, 0.0, (size, size), 1.0), repeat)
     result["normals_at_encode_s"] = loaded.seconds["prepare"]
     return result
 
@@ -433,12 +440,19 @@ def markdown(results):
     lines += _views_table(results["views"], methods + peers)
     if results.get("stages"):
         stages = results["stages"]
-        lines += ["", "The picture step by stage (ftb, 512 x 512, scale 1, alpha 30, beta 10; median seconds):", "",
-                  "| shading | render | shade |", "|---|---|---|",
-                  *(f"| {name} | {stages[name]['render']:.3f} | {stages[name]['shade']:.3f} |"
-                    for name in ("gradient", "gradient + ao", "depth-gradient")),
-                  "", f"PNG write {stages['write_s']:.3f} s; threshold, encode and the grey-level normals "
-                  f"{stages['normals_at_encode_s']:.2f} s (once per object)"]
+        vtk = stages.get("vtk_s")
+        lines += ["", "The picture step by stage (ftb, 512 x 512, scale 1, alpha 30, beta 10; median seconds; the "
+                  "whole picture is load + render + shade + write" + (", beside VTK's render of the same view" if vtk
+                                                                     else "") + "):", "",
+                  "| shading | load | render | shade | write | picture |" + (" vtk | picture/vtk |" if vtk else ""),
+                  "|---|---|---|---|---|---|" + ("---|---|" if vtk else "")]
+        for name in ("gradient", "gradient + ao", "depth-gradient"):
+            whole = stages.get("load_s", 0.0) + stages[name]["render"] + stages[name]["shade"] + stages["write_s"]
+            lines.append(f"| {name} | {stages.get('load_s', 0.0):.3f} | {stages[name]['render']:.3f} | "
+                         f"{stages[name]['shade']:.3f} | {stages['write_s']:.3f} | {whole:.3f} |" +
+                         (f" {vtk:.3f} | {whole / vtk:.2f} |" if vtk else ""))
+        lines += ["", f"Threshold, encode and the grey-level normals {stages['normals_at_encode_s']:.2f} s (once per "
+                  "object)"]
     if results.get("skin"):
         skin = results["skin"]
         lines += ["", f"vhf_head at {SKIN_THRESHOLD:g} HU (skin: the solid head), {skin['voxels']:,} object voxels, "
@@ -592,7 +606,7 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
             "views": bench_views(encoded, repeat, peer=peer),
             "skin": {"voxels": skin.segments.voxel_count, "segments": skin.segments.segment_count,
                      "views": bench_views(skin, repeat, views=PAPER_VIEWS)},
-            "stages": bench_stages(path, repeat),
+            "stages": bench_stages(path, repeat, peer=peer),
             "pipeline": bench_pipeline(path, max(1, repeat // 2)) if pipeline else {"command": "", "seconds": math.nan,
                                                                                    "method": DEFAULT_METHOD},
             "scaling": bench_scaling(repeat, scaling_sizes),
