@@ -385,7 +385,10 @@ def linear_octree(tree):
     if tree.n == 0:  # a single voxel: its code has no digits
         return digits
     if tree.n <= 19:                  # the codes as base-9 numbers fit 63 bits: one sort, not n
-        return digits[np.argsort(digits @ (9 ** np.arange(tree.n - 1, -1, -1, dtype=np.int64)))]
+        key = np.zeros(len(digits), np.int64)
+        for column in np.ascontiguousarray(digits.T):      # Horner's rule (an integer matmul has no BLAS)
+            key = key * 9 + column
+        return digits[np.argsort(key)]
     return digits[np.lexsort(digits.T[::-1])]
 
 
