@@ -191,8 +191,8 @@ def _encode_labels(volume, read, prepare, meta, progress):
         raise InputError("a label map is selected by its labels: drop --threshold, or pair the label map with its "
                          "image by --labels-from", parameter="threshold")
     # the label map lies on the image's grid: resample both with the image's spacing
-    labels, info = prep.label_map(replace(label_volume, spacing=volume.spacing), selection, crop=prepare.crop, voxel=prepare.voxel,
-                                  resample=prepare.resample)
+    labels, info = prep.label_map(replace(label_volume, spacing=volume.spacing), selection, crop=prepare.crop,
+                                  voxel=prepare.voxel, resample=prepare.resample)
     meta.update(labels=info["labels"], voxel_mm=info["voxel"])
     if selection.source is not None and prepare.threshold is not None:
         mask, found = prep.binarize(volume, prepare.threshold, crop=prepare.crop, voxel=prepare.voxel,

@@ -206,15 +206,8 @@ def binarize(volume, threshold=otsu_threshold, *, crop=None, voxel=None, resampl
     if callable(threshold):
         threshold = threshold(values)
     window = threshold if isinstance(threshold, Window) else Window(float(threshold))
-    voxel, out_shape = _grid(values.shape, volume.spacing, voxel, resample)
-    spacing = tuple(float(s) for s in volume.spacing)
-    if out_shape is not None:
-        mask = np.empty(out_shape, bool)
-        for k, plane in enumerate(resample_slices(values, spacing, voxel, progress)):
-            window.select(plane, out=mask[k])
-        spacing = (voxel, voxel, voxel)
-    else:
-        mask = window.select(values)
+    mask, voxel, spacing = _windowed(values, volume.spacing, [window], voxel, resample, progress)
+    mask = mask.view(bool)                                  # one window: 0 and 1
     if min_object > 1:
         from skimage.morphology import remove_small_objects
 
@@ -247,18 +240,25 @@ def classify(volume, windows, *, crop=None, voxel=None, resample=True, progress=
     ([[[0, 1, 2]]], '-300:, 300:')
     """
     values = _crop(volume.values, crop)
-    voxel, out_shape = _grid(values.shape, volume.spacing, voxel, resample)
-    spacing = tuple(float(s) for s in volume.spacing)
-    planes = resample_slices(values, spacing, voxel, progress) if out_shape is not None else values
-    labels = np.zeros(out_shape or values.shape, np.uint8)
-    for k, plane in enumerate(planes):
-        for number, window in enumerate(windows, 1):
-            labels[k][window.select(plane)] = number
+    labels, voxel, spacing = _windowed(values, volume.spacing, windows, voxel, resample, progress)
     if not labels.any():
         raise InputError(f"no voxel lies in {', '.join(str(w) for w in windows)}: values range from "
                          f"{np.min(values):g} to {np.max(values):g}", parameter="preset")
-    return labels, {"threshold": ", ".join(str(w) for w in windows), "voxel": voxel,
-                    "spacing": (voxel,) * 3 if out_shape is not None else spacing}
+    return labels, {"threshold": ", ".join(str(w) for w in windows), "voxel": voxel, "spacing": spacing}
+
+
+def _windowed(values, spacing, windows, voxel, resample, progress):
+    """The number (1, 2, ...) of the last of ``windows`` holding each voxel, 0 for none (uint8), on the grid the
+    object is made on, slice by slice: resampled to cubic voxels, or the input's own.  Returns it with the voxel
+    size and the spacing of that grid."""
+    voxel, out_shape = _grid(values.shape, spacing, voxel, resample)
+    planes = resample_slices(values, spacing, voxel, progress) if out_shape is not None else values
+    labels = np.empty(out_shape or values.shape, np.uint8)
+    for layer, plane in zip(labels, planes):
+        windows[0].select(plane, out=layer.view(bool))     # writes 0 and 1
+        for number, window in enumerate(windows[1:], 2):
+            layer[window.select(plane)] = number
+    return labels, voxel, (voxel,) * 3 if out_shape is not None else tuple(float(s) for s in spacing)
 
 
 def _grid(shape, spacing, voxel, resample):
