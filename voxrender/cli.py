@@ -20,7 +20,7 @@ import numpy as np
 from . import __version__, batch, colours, compare, io, lines, octree, orient, output, parse, prep, samples, segments
 from .sheet import render_sheet, sheet
 from .errors import InputError
-from .picture import Outputs, RenderOptions, about, picture, write_outputs
+from .picture import Outputs, RenderOptions, about, label_table, picture, write_outputs
 from .pipeline import Encoded, PrepOptions, ReadOptions, is_segments_file, load_segments
 from .render import DEFAULT_METHOD, METHODS, Clip
 from .render.raycast import CONNECTIVITIES
@@ -88,25 +88,21 @@ def _prep_options(options):
         chosen = parse.labels(options["label"]) if options["label"] else None
         labels = prep.LabelSelection(chosen, bool(options["labels"] or options["labels_from"] and not chosen),
                                      options["labels_from"])
-    if options["preset"] and options["threshold"] is not None:
+    tissues = parse.presets(options["preset"]) if options["preset"] else []
+    if tissues and options["threshold"] is not None:
         raise InputError("give --preset or --threshold, not both (a preset is a window and a colour)",
                          parameter="preset")
-    names = [name.strip() for name in (options["preset"] or "").split(",") if name.strip()]
-    tissues = tuple((name, colours.preset(name).window, colours.preset(name).colour) for name in names)
-    if len(tissues) > 1:
-        if labels:
-            raise InputError("give several presets or labels, not both: the presets are the labels",
-                             parameter="preset")
-        crop = parse.crop(options["crop"]) if options["crop"] else None
-        return PrepOptions(None, crop, options["voxel"], options["resample"], options["min_object"], None, tissues)
-    if options["preset"]:
-        threshold = colours.preset(names[0] if names else options["preset"]).window
+    if len(tissues) > 1 and labels:
+        raise InputError("give several presets or labels, not both: the presets are the labels", parameter="preset")
+    if len(tissues) == 1:
+        threshold = tissues[0][1].window
     elif options["threshold"] is not None:
         threshold = parse.threshold(options["threshold"])
     else:
-        threshold = None if labels else prep.otsu_threshold
+        threshold = None if labels or tissues else prep.otsu_threshold
+    several = tuple((name, tissue.window, tissue.colour) for name, tissue in tissues) if len(tissues) > 1 else ()
     crop = parse.crop(options["crop"]) if options["crop"] else None
-    return PrepOptions(threshold, crop, options["voxel"], options["resample"], options["min_object"], labels)
+    return PrepOptions(threshold, crop, options["voxel"], options["resample"], options["min_object"], labels, several)
 
 
 def _render_options(options):
@@ -116,9 +112,9 @@ def _render_options(options):
     method_options = {"connectivity": options["connectivity"]} if options["connectivity"] else {}
     if options["compare_rays"]:
         method_options["compare"] = True
-    presets = [name.strip() for name in (options.get("preset") or "").split(",") if name.strip()]
+    tissues = parse.presets(options["preset"]) if options.get("preset") else []
     colour = parse.colour(options["colour"], "colour") if options["colour"] else \
-        colours.preset(presets[0]).colour if len(presets) == 1 else (255, 255, 255)
+        tissues[0][1].colour if len(tissues) == 1 else (255, 255, 255)
     table = colours.read_colour_table(options["colours"]) if options["colours"] else None
     return RenderOptions(options["method"], method_options, clip if clip.active else None, options["fit"],
                          parse.size(options["size"]), options["scale"], options["supersample"], options["shading"],
@@ -539,8 +535,7 @@ def sheet_command(inputs, output_path, views, angles, methods, per_label, depth_
         if loaded.segments.labels is None:
             raise InputError("--per-label needs an object with labels: a label map with --labels, or --labels-from",
                              parameter="per_label")
-        table = colours.label_colours(loaded.segments.meta.get("labels") or np.unique(loaded.segments.labels).tolist(),
-                                      loaded.segments.meta.get("label_table"), render_options.colours)
+        table = label_table(loaded.segments, render_options.colours)
         alone = replace(render_options, legend=False)
         rows = [("all labels", loaded, render_options)] + [
             (name, Encoded(loaded.segments.only(label)), replace(alone, colour=tuple(c / 255 for c in rgb)))

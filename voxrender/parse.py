@@ -16,7 +16,7 @@ from .errors import InputError
 from .io import RawLayout
 from .prep import Window, otsu_threshold
 
-__all__ = ["size", "vector", "colour", "clip_range", "crop", "threshold", "labels", "raw_layout"]
+__all__ = ["size", "vector", "colour", "clip_range", "crop", "threshold", "presets", "labels", "raw_layout"]
 
 
 def size(text):
@@ -129,6 +129,20 @@ def threshold(text):
         raise InputError(f"{text!r} must be a finite number (in stored units, HU for CT) or 'otsu'",
                          parameter="threshold")
     return value
+
+
+def presets(text):
+    """Preset names ``"skin,bone"`` as ``[(name, Preset)]``, in the order given (see :data:`voxrender.colours.PRESETS`).
+
+    >>> [(name, str(tissue.window)) for name, tissue in presets("skin, bone")]
+    [('skin', '-300:'), ('bone', '300:')]
+    """
+    from .colours import preset
+
+    names = [name.strip() for name in str(text).split(",") if name.strip()]
+    if not names:
+        raise InputError(f"{text!r} names no preset; 'voxrender presets' lists them", parameter="preset")
+    return [(name, preset(name)) for name in names]
 
 
 def labels(text):

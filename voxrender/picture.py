@@ -21,7 +21,7 @@ from .shade import HEADLIGHT, SHADINGS, light_direction
 from .render import DEFAULT_METHOD, Clip, DepthImage, method_record, render
 from .view import View
 
-__all__ = ["RenderOptions", "Outputs", "Picture", "picture", "write_outputs", "about"]
+__all__ = ["RenderOptions", "Outputs", "Picture", "picture", "label_table", "write_outputs", "about"]
 
 
 
@@ -203,17 +203,24 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
     return result
 
 
+def label_table(segments, given=None):
+    """Name and colour of every label of a multi-label object: ``{label: (name, (r, g, b))}``, from ``given`` (a
+    colour table), else from those kept with the object, else the built-in palette (``colours.label_colours``)."""
+    from .colours import label_colours
+
+    present = segments.meta.get("labels") or np.unique(np.asarray(segments.labels)).tolist()
+    return label_colours(present, segments.meta.get("label_table"), given)
+
+
 def _label_colours(segments, image, options):
     """The label image of a multi-label picture, its names and colours, and the colour of each pixel (H, W, 3)
     in [0, 1]; the statistics gain the pixels of each label (``label_pixels``)."""
-    from .colours import label_colours
     from .labels import label_image, label_pixels
 
     labels = label_image(segments, image, options.clip)
     image.stats["label_pixels"] = {str(k): v for k, v in label_pixels(labels).items()}
-    present = segments.meta.get("labels") or np.unique(np.asarray(segments.labels)).tolist()
-    table = label_colours(present, segments.meta.get("label_table"), options.colours)
-    lookup = np.zeros((max(present) + 1, 3), np.float32)
+    table = label_table(segments, options.colours)
+    lookup = np.zeros((max(table) + 1, 3), np.float32)
     for label, (_, rgb) in table.items():
         lookup[label] = np.asarray(rgb, np.float32) / 255
     return labels, table, lookup[labels]

@@ -101,11 +101,8 @@ class Segments:
         ([3, 5], None)
         """
         keep = np.isin(np.asarray(self.labels), np.atleast_1d(labels))
-        counts = np.add.reduceat(np.append(keep, False).astype(np.int64), np.asarray(self.offsets)[:-1]) \
-            if len(keep) else np.zeros(len(self.offsets) - 1, np.int64)
-        counts[np.diff(np.asarray(self.offsets)) == 0] = 0             # reduceat gives an empty row one element
-        offsets = np.zeros(len(self.offsets), np.int64)
-        np.cumsum(counts, out=offsets[1:])
+        kept_before = np.concatenate([[0], np.cumsum(keep)])      # runs kept before each run
+        offsets = kept_before[np.asarray(self.offsets)]
         meta = {k: v for k, v in self.meta.items() if k != "label_table"}
         meta["labels"] = [int(v) for v in np.atleast_1d(labels)]
         return Segments(self.shape, np.asarray(self.starts)[keep], np.asarray(self.ends)[keep], offsets,
