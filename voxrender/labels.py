@@ -83,9 +83,10 @@ def label_image(segments, image, clip=None):
     xs, ys = view.pixel_centres(columns, rows)
     best_depth = np.full(len(points), np.inf)
     best_label = np.zeros(len(points), np.uint16)
-    for corner in np.ndindex(2, 2, 2):                 # the (at most 8) cubes a point can lie on
-        voxel = low + np.array(corner)
-        label = label_at(segments, *voxel.T)
+    corners = np.array(list(np.ndindex(2, 2, 2)))     # the (at most 8) cubes a point can lie on
+    candidates = low[None] + corners[:, None]          # (8, N, 3)
+    found = label_at(segments, *candidates.reshape(-1, 3).T).reshape(len(corners), -1)   # one look-up for all
+    for voxel, label in zip(candidates, found):
         label[(voxel > high).any(axis=1)] = 0
         if clip is not None:
             label[~clip.keeps(*voxel.T, view, shape)] = 0

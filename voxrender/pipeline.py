@@ -151,12 +151,12 @@ def load_segments(path, read=None, prepare=None, progress=None):
     if prepare.tissues:
         labels, info = prep.classify(volume, [window for _, window, _ in prepare.tissues], crop=prepare.crop,
                                      voxel=prepare.voxel, resample=prepare.resample, progress=progress)
-        table = {str(k): {"name": name, "colour": list(colour)}
-                 for k, (name, _, colour) in enumerate(prepare.tissues, 1)}
-        present = [int(v) for v in np.unique(labels) if v]
-        encoded = segments.encode_labels(labels, info["spacing"], {
-            **meta, "threshold": info["threshold"], "voxel_mm": info["voxel"], "labels": present,
-            "label_table": {k: v for k, v in table.items() if int(k) in present}})
+        encoded = segments.encode_labels(labels, info["spacing"], {**meta, "threshold": info["threshold"],
+                                                                 "voxel_mm": info["voxel"]})
+        present = np.unique(encoded.labels).tolist()           # from the runs: the volume is 100 times larger
+        encoded.meta.update(labels=present, label_table={
+            str(k): {"name": name, "colour": list(colour)}
+            for k, (name, _, colour) in enumerate(prepare.tissues, 1) if k in present})
         encoded.normals = grey_normals(volume, labels > 0, info, prepare)
     elif prepare.labels is None:
         mask, info = prep.binarize(volume, prepare.threshold, crop=prepare.crop, voxel=prepare.voxel,
