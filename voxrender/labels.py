@@ -38,8 +38,7 @@ def label_at(segments, x, y, z):
     if not segments.segment_count:
         return np.zeros(x.shape, np.uint16)
     inside = (x >= 0) & (x < nx) & (y >= 0) & (y < ny) & (z >= 0) & (z < nz)
-    offsets = np.asarray(segments.offsets)
-    runs_row = np.repeat(np.arange(nz * ny, dtype=np.int64), np.diff(offsets))
+    runs_row = segments.run_rows()
     # runs sorted by row and then start: one key orders them all
     keys = runs_row * (nx + 1) + np.asarray(segments.starts)
     row = np.where(inside, z * ny + y, 0)

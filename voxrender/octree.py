@@ -297,13 +297,11 @@ def build(mask):
 def build_from_segments(segments):
     """The region octree of run-length :class:`~voxrender.segments.Segments`, without making their mask: the
     work and memory grow with the object, not with the octree's cube."""
-    nz, ny, _ = segments.shape
-    offsets = np.asarray(segments.offsets)
+    ny = segments.shape[1]
     starts, ends = np.asarray(segments.starts, np.int64), np.asarray(segments.ends, np.int64)
-    rows = np.repeat(np.arange(nz * ny, dtype=np.int64), np.diff(offsets))
     lengths = ends - starts + 1
     x = ranges(starts, lengths)
-    row = np.repeat(rows, lengths)
+    row = np.repeat(segments.run_rows(), lengths)
     return build_from_voxels(np.stack([x, row % ny, row // ny], axis=1), segments.shape)
 
 
