@@ -31,6 +31,7 @@ def test_round_trips(shape):
     tree = octree.build(mask)
     assert np.array_equal(tree.to_mask(), mask)
     codes = octree.linear_octree(tree)
+    assert np.array_equal(tree.linear, codes)     # from the Morton order, against the digits sorted as numbers
     assert np.array_equal(octree.codes_to_mask(codes, tree.n)[:shape[0], :shape[1], :shape[2]], mask)
     if shape == (1, 1, 1):
         assert len(codes) == mask.sum()

@@ -223,7 +223,7 @@ def save(segments, path, sections=None):
         f.write(MAGIC + np.uint64(len(header)).tobytes() + header)
         for name, array in arrays.items():
             f.seek(data_start + layout[name]["offset"])
-            f.write(array.tobytes())
+            f.write(np.ascontiguousarray(array).data)    # no copy of the bytes
         f.truncate(data_start + position)
 
 
