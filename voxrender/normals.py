@@ -33,8 +33,10 @@ def _stencil(radius, smooth, derive):
 _t = np.arange(-2, 3, dtype=float)
 # Grey values: the Sobel kernel (a central difference along the axis, 1 2 1 across it).  A binary mask: the
 # derivative of a Gaussian of one voxel over 5 x 5 x 5, which smooths its steps.
-SOBEL = _stencil(1, np.array([1.0, 2.0, 1.0]), np.array([-1.0, 0.0, 1.0]))
-GAUSSIAN = _stencil(2, np.exp(-_t ** 2 / 2), _t * np.exp(-_t ** 2 / 2))
+SOBEL_1D = np.array([1.0, 2.0, 1.0]), np.array([-1.0, 0.0, 1.0])          # (smooth, derive)
+GAUSSIAN_1D = np.exp(-_t ** 2 / 2), _t * np.exp(-_t ** 2 / 2)
+SOBEL = _stencil(1, *SOBEL_1D)
+GAUSSIAN = _stencil(2, *GAUSSIAN_1D)
 
 
 def octahedral_encode(normals):
@@ -139,9 +141,10 @@ def surface_normals(mask, sample=None, source=None):
     ----------
     mask : ndarray of bool ``[z, y, x]``
         The object (its voxels have the high values).
-    sample : callable, optional
-        ``sample(points)`` gives the grey values at object points ``(N, 3)`` (x, y, z; whole or fractional
-        voxels of ``mask``'s grid).  Default: the mask itself, as 0 and 1 (the binary fallback).
+    sample : ndarray or callable, optional
+        The grey values: an array on ``mask``'s grid, or ``sample(points)`` giving them at object points
+        ``(N, 3)`` (x, y, z; whole or fractional voxels of ``mask``'s grid).  Beyond the grid's edge a value is
+        its nearest voxel's.  Default: the mask itself, as 0 and 1 (the binary fallback).
     source : str, optional
         What the normals came from, for the record (default: "grey values", or "the binary mask").
 
@@ -159,17 +162,23 @@ def surface_normals(mask, sample=None, source=None):
     mask = np.asarray(mask, dtype=bool)
     nz, ny, nx = mask.shape
     if sample is None:
-        grid = mask.astype(np.float32)
-        shape = np.array([nx, ny, nz])
-
-        def sample(points):
-            p = np.clip(np.rint(points).astype(np.int64), 0, shape - 1)
-            return grid[p[:, 2], p[:, 1], p[:, 0]]
-
-        source = source or "the binary mask"
+        sample, source = mask, source or "the binary mask"
     offsets, kernels = GAUSSIAN if source == "the binary mask" else SOBEL
     z, y, x = np.nonzero(surface_band(mask))
-    centres = np.stack([x, y, z], axis=1)
+    if callable(sample):
+        gradient = _gradient_of_samples(sample, np.stack([x, y, z], axis=1), offsets, kernels)
+    else:
+        smooth, derive = GAUSSIAN_1D if source == "the binary mask" else SOBEL_1D
+        gradient = _gradient_on_grid(sample, (z, y, x), smooth, derive)
+    length = np.linalg.norm(gradient, axis=1)
+    keep = length > 1e-9
+    outward = -gradient[keep] / length[keep, None]                    # the object is where values are high
+    index = ((z * ny + y) * nx + x)[keep].astype(np.int64)
+    return SurfaceNormals((nz, ny, nx), index, octahedral_encode(outward), source or "grey values")
+
+
+def _gradient_of_samples(sample, centres, offsets, kernels):
+    """The gradient at ``centres`` from ``sample(points)`` at every offset of the stencil: any sampler."""
     gradient = np.zeros((len(centres), 3))
     chunk = max(1, 4_000_000 // len(offsets))
     for start in range(0, len(centres), chunk):
@@ -177,11 +186,29 @@ def surface_normals(mask, sample=None, source=None):
         stencil = (part[:, None, :] + offsets[None, :, :]).reshape(-1, 3)
         values = np.asarray(sample(stencil), dtype=np.float64).reshape(len(part), len(offsets))
         gradient[start:start + chunk] = values @ kernels.T
-    length = np.linalg.norm(gradient, axis=1)
-    keep = length > 1e-9
-    outward = -gradient[keep] / length[keep, None]                    # the object is where values are high
-    index = ((z * ny + y) * nx + x)[keep].astype(np.int64)
-    return SurfaceNormals((nz, ny, nx), index, octahedral_encode(outward), source or "grey values")
+    return gradient
+
+
+def _gradient_on_grid(grid, voxels, smooth, derive):
+    """The gradient at ``voxels`` (z, y, x arrays) of the values ``grid`` by a separable kernel: per row of the
+    stencil across x, the row's 1-D weighted sums, from one gather of its window of the (edge-padded) grid.
+    The same as :func:`_gradient_of_samples` with the stencil's kernels; a fifth of its time."""
+    radius = len(smooth) // 2
+    padded = np.pad(np.asarray(grid), radius, mode="edge")
+    _, py, px = padded.shape
+    windows = np.lib.stride_tricks.sliding_window_view(padded.ravel(), 2 * radius + 1)   # x - r .. x + r
+    z, y, x = voxels
+    first = (z * py + y) * px + x                   # the window of voxel (z, y, x) at stencil row dy = dz = -r
+    weights = np.stack([derive, smooth], axis=1)
+    gradient = np.zeros((len(first), 3))
+    for dz in range(2 * radius + 1):
+        for dy in range(2 * radius + 1):
+            rows = windows[first + (dz * py + dy) * px].astype(np.float64)
+            along, across = (rows @ weights).T                 # the x-derivative and the x-smoothed sum
+            gradient[:, 0] += smooth[dy] * smooth[dz] * along
+            gradient[:, 1] += derive[dy] * smooth[dz] * across
+            gradient[:, 2] += smooth[dy] * derive[dz] * across
+    return gradient
 
 
 def kept(segments):

@@ -220,8 +220,6 @@ def _encode_labels(volume, read, prepare, meta, progress):
 def grey_normals(volume, mask, info, prepare):
     """The surface normals of ``mask`` from the volume's grey values (trilinear samples of the cropped input at the
     mask's grid points); from the mask itself when the volume holds only two values (a binary input)."""
-    from scipy import ndimage
-
     from .normals import surface_normals
 
     values = prep.crop(volume.values, prepare.crop)
@@ -229,17 +227,11 @@ def grey_normals(volume, mask, info, prepare):
         return surface_normals(mask)
     # a mask grid point k along an axis lies k * voxel / spacing input voxels from the first
     step = np.array([info["voxel"] / s for s in volume.spacing]) if prepare.resample else np.ones(3)
+    if np.allclose(step, 1) and values.shape == mask.shape:      # the grid is the input's: its voxels
+        return surface_normals(mask, values)
+    from scipy import ndimage
 
-    if np.allclose(step, 1):                                  # the grid is the input's: read the voxels
-        top = np.array(values.shape[::-1]) - 1
-        flat = np.ravel(values)                              # a view when the volume is not cropped
-        row, plane = values.shape[2], values.shape[1] * values.shape[2]
-
-        def sample(points):
-            x, y, z = np.clip(points, 0, top).T              # summed, not an integer matmul (no BLAS: twice as slow)
-            return flat[x + y * row + z * plane]
-    else:
-        def sample(points):
-            return ndimage.map_coordinates(values, (points * step)[:, ::-1].T, order=3, mode="nearest")
+    def sample(points):
+        return ndimage.map_coordinates(values, (points * step)[:, ::-1].T, order=3, mode="nearest")
 
     return surface_normals(mask, sample)
