@@ -1,5 +1,7 @@
 """Grey-level gradient normals: accuracy on a ball, the .vxs keeps them, every method gets the same."""
 
+import itertools
+
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -119,3 +121,26 @@ def test_the_separable_pass_on_a_grid_is_the_stencil(binary):
     assert fast.source == plain.source and np.array_equal(fast.index, plain.index)
     cosine = (normals.octahedral_decode(fast.packed) * normals.octahedral_decode(plain.packed)).sum(axis=1)
     assert np.degrees(np.arccos(np.clip(cosine, -1, 1))).max() < 0.05      # the same, up to quantisation
+
+
+def test_normals_at_points_are_the_trilinear_blend_of_the_corners_present():
+    # a literal oracle: point by point, the eight voxel centres around it, each weighed when it has a normal
+    mask = np.random.default_rng(11).random((6, 7, 8)) < 0.5
+    field = normals.surface_normals(mask)
+    unit = {int(k): v for k, v in zip(field.index, normals.octahedral_decode(field.packed))}
+    nz, ny, nx = mask.shape
+    points = np.random.default_rng(12).uniform(-1.5, [nx + 0.5, ny + 0.5, nz + 0.5], (300, 3))
+    points[:20] = np.floor(points[:20])                       # on voxel centres: some corners weigh 0
+    got = field.at(points)
+    for point, normal in zip(points, got):
+        total = np.zeros(3)
+        base = np.floor(point).astype(int)
+        for corner in itertools.product((0, 1), repeat=3):
+            x, y, z = base + corner
+            weight = np.prod([f if c else 1 - f for f, c in zip(point - base, corner)])
+            if 0 <= x < nx and 0 <= y < ny and 0 <= z < nz and (z * ny + y) * nx + x in unit:
+                total += weight * unit[(z * ny + y) * nx + x]
+        if np.linalg.norm(total) > 1e-12:
+            assert np.allclose(normal, total / np.linalg.norm(total), atol=1e-5)
+        else:
+            assert np.isnan(normal).all()

@@ -55,13 +55,20 @@ def octahedral_encode(normals):
 
 def octahedral_decode(packed):
     """``(N, 2)`` int16 back to unit vectors ``(N, 3)`` float32."""
-    x, y = (np.asarray(packed, dtype=np.float32) / 32767).T
+    return np.stack(_decode(np.ascontiguousarray(packed, np.int16).view(np.int32).ravel()), axis=1)
+
+
+def _decode(words):
+    """The unit vectors of packed normals each read as one int32 word (a cheaper gather than int16 pairs):
+    their x, y and z, each a contiguous float32 array."""
+    pair = words.view(np.int16).reshape(-1, 2)
+    x, y = pair[:, 0] * np.float32(1 / 32767), pair[:, 1] * np.float32(1 / 32767)
     z = 1 - np.abs(x) - np.abs(y)
     shift = np.maximum(-z, 0)
-    x = x - np.where(x >= 0, shift, -shift)
-    y = y - np.where(y >= 0, shift, -shift)
-    n = np.stack([x, y, z], axis=1)
-    return n / np.linalg.norm(n, axis=1, keepdims=True)
+    x -= np.copysign(shift, x)              # x >= 0 (never -0.0: it comes from an integer) gives +shift
+    y -= np.copysign(shift, y)
+    length = np.sqrt(x * x + y * y + z * z)
+    return x / length, y / length, z / length
 
 
 def surface_band(mask):
@@ -105,31 +112,30 @@ class SurfaceNormals:
         around each; NaN where none of the eight has one."""
         points = np.asarray(points, dtype=np.float64)
         nz, ny, nx = self.shape
-        index, packed = np.asarray(self.index), np.asarray(self.packed)     # plain arrays, not memory maps
-        if not len(index):
+        index = np.asarray(self.index)                                    # a plain array, not a memory map
+        if not len(index) or not len(points):
             return np.full((len(points), 3), np.nan, np.float32)
         base = np.floor(points).astype(np.int64)
-        fraction = (points - base).astype(np.float32)
+        fx, fy, fz = (points - base).astype(np.float32).T
         x, y, z = base.T
+        # the four rows (dz, dy) around each point, all looked up in one search; voxel x + 1 of a row, when
+        # present, sorts right after voxel x (or at x's place if x is absent)
+        dz, dy = np.array([0, 0, 1, 1])[:, None], np.array([0, 1, 0, 1])[:, None]
+        inside = (y + dy >= 0) & (y + dy < ny) & (z + dz >= 0) & (z + dz < nz)
+        linear = ((z + dz) * ny + (y + dy)) * nx + x                                 # (4, N)
         top = len(index) - 1
-        pixels, slots, weights = [], [], []
-        for dz, dy in itertools.product((0, 1), repeat=2):
-            row_ok = (y + dy >= 0) & (y + dy < ny) & (z + dz >= 0) & (z + dz < nz)
-            linear = ((z + dz) * ny + (y + dy)) * nx + x
-            slot = np.minimum(np.searchsorted(index, linear), top)
-            weight_yz = (fraction[:, 1] if dy else 1 - fraction[:, 1]) * (fraction[:, 2] if dz else 1 - fraction[:, 2])
-            first = row_ok & (x >= 0) & (index[slot] == linear)
-            # voxel x + 1 of the same row, when present, sorts right after voxel x (or at x's place if x is absent)
-            after = np.minimum(slot + first, top)
-            second = row_ok & (x + 1 < nx) & (index[after] == linear + 1)
-            for found, where, weight in ((first, slot, 1 - fraction[:, 0]), (second, after, fraction[:, 0])):
-                pixels.append(np.flatnonzero(found))
-                slots.append(where[found])
-                weights.append((weight * weight_yz)[found])
-        pixels, weights = np.concatenate(pixels), np.concatenate(weights)
-        normals = octahedral_decode(packed[np.concatenate(slots)])          # all corners in one go
-        total = np.stack([np.bincount(pixels, weights * normals[:, k], len(points)) for k in range(3)], axis=1)
-        length = np.linalg.norm(total, axis=1, keepdims=True)
+        slot = np.minimum(np.searchsorted(index, linear.astype(index.dtype, copy=False)), top)
+        there = index[slot] == linear              # at x = -1 that is the last voxel of the row before
+        first = inside & (x >= 0) & (x < nx) & there
+        after = np.minimum(slot + there, top)
+        second = inside & (x + 1 >= 0) & (x + 1 < nx) & (index[after] == linear + 1)
+        weight_yz = np.where(dy, fy, 1 - fy) * np.where(dz, fz, 1 - fz)             # (4, N)
+        # (8, N): x, then x + 1; a missing corner weighs 0 (decoding all is cheaper than picking those found)
+        weights = np.concatenate([np.where(first, (1 - fx) * weight_yz, 0), np.where(second, fx * weight_yz, 0)])
+        words = np.ascontiguousarray(self.packed, np.int16).view(np.int32).ravel()
+        corners = _decode(words[np.concatenate([slot, after]).ravel()])
+        total = np.stack([np.einsum("cn,cn->n", weights, c.reshape(weights.shape)) for c in corners], axis=1)
+        length = np.sqrt(np.einsum("nk,nk->n", total, total))[:, None]
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.where(length > 1e-12, total / length, np.nan).astype(np.float32)
 
@@ -173,7 +179,7 @@ def surface_normals(mask, sample=None, source=None):
     length = np.linalg.norm(gradient, axis=1)
     keep = length > 1e-9
     outward = -gradient[keep] / length[keep, None]                    # the object is where values are high
-    index = ((z * ny + y) * nx + x)[keep].astype(np.int64)
+    index = ((z * ny + y) * nx + x)[keep].astype(np.int32 if mask.size < 2 ** 30 else np.int64)
     return SurfaceNormals((nz, ny, nx), index, octahedral_encode(outward), source or "grey values")
 
 

@@ -209,7 +209,8 @@ def save(segments, path, sections=None):
         arrays["labels"] = np.asarray(segments.labels, "<u2")
     meta = dict(segments.meta)
     if segments.normals is not None:
-        arrays.update(normal_index=np.asarray(segments.normals.index, "<i8"),
+        index = "<i4" if np.prod(segments.shape, dtype=np.int64) < 2 ** 30 else "<i8"   # half the bytes to search
+        arrays.update(normal_index=np.asarray(segments.normals.index, index),
                       normal_packed=np.asarray(segments.normals.packed, "<i2").ravel())
         meta["normals_from"] = segments.normals.source
     layout, position = {}, 0
