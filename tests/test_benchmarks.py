@@ -27,8 +27,13 @@ def test_phantoms():
     assert bench.phantom("sphere", 20).sum() > bench.phantom("gyroid", 20).sum() > 0
 
 
-def test_markdown_report():
-    results = {"when": "now", "machine": "here", "repeat": 1, "read_s": 1.0, "vtk_version": None,
+def test_markdown_report(tmp_path):
+    small = tmp_path / "small.vxs"
+    segments.save(segments.encode(bench.thin_shell(16, 6.0)), small)
+    stage = {"render": 0.1, "shade": 0.02}
+    stages = {"load_s": 0.001, "write_s": 0.002, "vtk_s": 0.246, "normals_at_encode_s": 1.0, "gradient": stage,
+              "gradient + ao": stage, "depth-gradient": stage, "fresh": bench._fresh_stages(small, 1, 32)}
+    results = {"stages": stages, "when": "now", "machine": "here", "repeat": 1, "read_s": 1.0, "vtk_version": None,
                "encode": {"grid_xyz": [4, 4, 4], "voxels": 8, "segments": 4, "threshold_and_encode_s": 0.1},
                "views": [{"alpha": 1.0, "beta": 2.0, "seconds": {m: 1.0 for m in bench.timed_methods()}}],
                "pipeline": {"command": "c", "seconds": 1.0, "method": "ftb"},
@@ -40,5 +45,7 @@ def test_markdown_report():
     text = bench.markdown(results)
     assert "| .nii.gz | 17.0 | 0.25 |" in text
     assert "| 1 | 2 |" in text and "fitted exponent" in text and "peers" in text and "| shell | adaptive |" in text
+    assert "| gradient | 0.001 | 0.100 | 0.020 | 0.002 | 0.123 | 0.246 | 0.50 |" in text
+    assert "| gradient, fresh process |" in text and "In a fresh process" in text
     rows = results["raycast"]["shell"]["rows"]
     assert rows["adaptive"]["leaks"] == 0 and rows["26"]["leaks"] > 0
