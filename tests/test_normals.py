@@ -144,3 +144,10 @@ def test_normals_at_points_are_the_trilinear_blend_of_the_corners_present():
             assert np.allclose(normal, total / np.linalg.norm(total), atol=1e-5)
         else:
             assert np.isnan(normal).all()
+
+
+def test_the_surface_band_is_dilation_minus_erosion():
+    mask = np.random.default_rng(4).random((9, 10, 11)) < 0.5                 # touches every edge
+    cross = ndimage.generate_binary_structure(3, 1)
+    expected = ndimage.binary_dilation(mask, cross) & ~ndimage.binary_erosion(mask, cross, border_value=0)
+    assert np.array_equal(normals.surface_band(mask), expected)

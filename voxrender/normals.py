@@ -74,27 +74,29 @@ def _decode(words):
 def surface_band(mask):
     """Object voxels with an empty 6-neighbour (or on the volume's edge) and empty voxels with an object one.
 
-    Dilation and erosion by shifted slices, as :func:`voxrender.render.raycast.proximity_band` does: the same
-    band as SciPy's ``binary_dilation`` and ``binary_erosion`` with a 6-neighbourhood, about seven times faster
-    (0.03 s against 0.21 s on a 256 x 256 x 234 ball).
+    The voxels of every 6-neighbour pair that differ, by shifted slices: the same band as SciPy's
+    ``binary_dilation`` minus ``binary_erosion`` with a 6-neighbourhood (the edge counting as empty), many times
+    faster.
 
     >>> int(surface_band(np.pad(np.ones((3, 3, 3), bool), 1)).sum())
     80
     """
     mask = np.asarray(mask, dtype=bool)
-    grown, shrunk = mask.copy(), mask.copy()
+    band = np.zeros_like(mask)
+    scratch = np.empty(mask.size, bool)             # one buffer for the three axes' differences
     for axis in range(3):
-        for lead, trail in ((slice(1, None), slice(None, -1)), (slice(None, -1), slice(1, None))):
-            into = [slice(None)] * 3
-            source = [slice(None)] * 3
-            into[axis], source[axis] = lead, trail
-            grown[tuple(into)] |= mask[tuple(source)]
-            shrunk[tuple(into)] &= mask[tuple(source)]
-        edge = [slice(None)] * 3
-        for end in (0, -1):
+        lead, trail = [slice(None)] * 3, [slice(None)] * 3
+        lead[axis], trail[axis] = slice(1, None), slice(None, -1)
+        lead, trail = tuple(lead), tuple(trail)
+        differ = scratch[:mask[lead].size].reshape(mask[lead].shape)
+        np.not_equal(mask[lead], mask[trail], out=differ)     # both voxels of a differing pair are in the band
+        band[lead] |= differ
+        band[trail] |= differ
+        for end in (0, -1):                         # object voxels on the volume's edge
+            edge = [slice(None)] * 3
             edge[axis] = end
-            shrunk[tuple(edge)] = False
-    return grown & ~shrunk
+            band[tuple(edge)] |= mask[tuple(edge)]
+    return band
 
 
 @dataclass
@@ -170,7 +172,7 @@ def surface_normals(mask, sample=None, source=None):
     if sample is None:
         sample, source = mask, source or "the binary mask"
     offsets, kernels = GAUSSIAN if source == "the binary mask" else SOBEL
-    z, y, x = np.nonzero(surface_band(mask))
+    z, y, x = np.unravel_index(np.flatnonzero(surface_band(mask)), mask.shape)    # faster than a 3-D nonzero
     if callable(sample):
         gradient = _gradient_of_samples(sample, np.stack([x, y, z], axis=1), offsets, kernels)
     else:
@@ -197,23 +199,39 @@ def _gradient_of_samples(sample, centres, offsets, kernels):
 
 def _gradient_on_grid(grid, voxels, smooth, derive):
     """The gradient at ``voxels`` (z, y, x arrays) of the values ``grid`` by a separable kernel: per row of the
-    stencil across x, the row's 1-D weighted sums, from one gather of its window of the (edge-padded) grid.
-    The same as :func:`_gradient_of_samples` with the stencil's kernels; a fifth of its time."""
+    stencil across x, the row's 1-D weighted sums, from one gather of its window of the grid; rows beyond the
+    grid's edge in y or z are the edge's.  The same as :func:`_gradient_of_samples` with the stencil's kernels,
+    which takes the few voxels whose window would run off the row's end; a fifth of its time, and no copy of
+    the grid."""
     radius = len(smooth) // 2
-    padded = np.pad(np.asarray(grid), radius, mode="edge")
-    _, py, px = padded.shape
-    windows = np.lib.stride_tricks.sliding_window_view(padded.ravel(), 2 * radius + 1)   # x - r .. x + r
+    grid = np.ascontiguousarray(grid)
+    nz, ny, nx = grid.shape
     z, y, x = voxels
-    first = (z * py + y) * px + x                   # the window of voxel (z, y, x) at stencil row dy = dz = -r
+    gradient = np.zeros((len(x), 3))
+    inner = (x >= radius) & (x < nx - radius)
+    if not inner.all():
+        top = np.array([nx, ny, nz]) - 1
+
+        def sample(points):
+            p = np.clip(points, 0, top)
+            return grid[p[:, 2], p[:, 1], p[:, 0]]
+
+        edge = np.stack([x, y, z], axis=1)[~inner]
+        gradient[~inner] = _gradient_of_samples(sample, edge, *_stencil(radius, smooth, derive))
+    z, y, x = z[inner], y[inner], x[inner]
+    windows = np.lib.stride_tricks.sliding_window_view(grid.ravel(), 2 * radius + 1)     # x - r .. x + r
+    planes = [np.clip(z + d, 0, nz - 1) * ny for d in range(-radius, radius + 1)]
+    rows = [np.clip(y + d, 0, ny - 1) for d in range(-radius, radius + 1)]
     weights = np.stack([derive, smooth], axis=1)
-    gradient = np.zeros((len(first), 3))
-    for dz in range(2 * radius + 1):
-        for dy in range(2 * radius + 1):
-            rows = windows[first + (dz * py + dy) * px].astype(np.float64)
-            along, across = (rows @ weights).T                 # the x-derivative and the x-smoothed sum
-            gradient[:, 0] += smooth[dy] * smooth[dz] * along
-            gradient[:, 1] += derive[dy] * smooth[dz] * across
-            gradient[:, 2] += smooth[dy] * derive[dz] * across
+    found = np.zeros((len(x), 3))
+    for dz, plane in enumerate(planes):
+        for dy, row in enumerate(rows):
+            values = windows[(plane + row) * nx + x - radius].astype(np.float64)
+            along, across = (values @ weights).T                 # the x-derivative and the x-smoothed sum
+            found[:, 0] += smooth[dy] * smooth[dz] * along
+            found[:, 1] += derive[dy] * smooth[dz] * across
+            found[:, 2] += smooth[dy] * derive[dz] * across
+    gradient[inner] = found
     return gradient
 
 

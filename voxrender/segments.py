@@ -156,9 +156,13 @@ def encode(mask, spacing=(1.0, 1.0, 1.0), meta=None):
     if mask.ndim != 3:
         raise InputError(f"a mask must be 3-D [z, y, x], got shape {mask.shape}")
     nz, ny, nx = mask.shape
-    padded = np.zeros((nz * ny, nx + 2), bool)
-    padded[:, 1:-1] = mask.reshape(nz * ny, nx)
-    changes = np.flatnonzero(padded[:, 1:] != padded[:, :-1])
+    lines = mask.reshape(nz * ny, nx)
+    # the changes within rows, and those against the clear voxels at both ends, as places in a row padded at
+    # both ends (no padded copy of the volume: it costs more than the search)
+    inner = np.flatnonzero(lines[:, 1:] != lines[:, :-1])
+    changes = np.concatenate([inner + inner // (nx - 1) * 2 + 1 if nx > 1 else inner,
+                              np.flatnonzero(lines[:, 0]) * (nx + 1), np.flatnonzero(lines[:, -1]) * (nx + 1) + nx])
+    changes.sort()
     rows, columns = np.divmod(changes, nx + 1)
     starts, ends = columns[0::2], columns[1::2] - 1
     offsets = np.zeros(nz * ny + 1, np.int64)
