@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -109,6 +110,11 @@ class SurfaceNormals:
     packed: np.ndarray
     source: str = "grey values"
 
+    @cached_property
+    def unit(self):
+        """All the unit normals, decoded: x, y and z rows ``(3, M)`` float32."""
+        return np.stack(_decode(np.ascontiguousarray(self.packed, np.int16).view(np.int32).ravel()))
+
     def at(self, points):
         """Normals ``(N, 3)`` at object points ``(N, 3)`` (x, y, z), interpolated from the eight voxel centres
         around each; NaN where none of the eight has one."""
@@ -134,8 +140,11 @@ class SurfaceNormals:
         weight_yz = np.where(dy, fy, 1 - fy) * np.where(dz, fz, 1 - fz)             # (4, N)
         # (8, N): x, then x + 1; a missing corner weighs 0 (decoding all is cheaper than picking those found)
         weights = np.concatenate([np.where(first, (1 - fx) * weight_yz, 0), np.where(second, fx * weight_yz, 0)])
-        words = np.ascontiguousarray(self.packed, np.int16).view(np.int32).ravel()
-        corners = _decode(words[np.concatenate([slot, after]).ravel()])
+        slots = np.concatenate([slot, after]).ravel()
+        if "unit" in self.__dict__ or len(slots) >= len(index):      # decoded once, for every later picture
+            corners = self.unit[:, slots]
+        else:                                                     # a small picture: decode just its corners
+            corners = _decode(np.ascontiguousarray(self.packed, np.int16).view(np.int32).ravel()[slots])
         total = np.stack([np.einsum("cn,cn->n", weights, c.reshape(weights.shape)) for c in corners], axis=1)
         length = np.sqrt(np.einsum("nk,nk->n", total, total))[:, None]
         with np.errstate(invalid="ignore", divide="ignore"):
