@@ -155,6 +155,26 @@ def _ranges(first, counts):
     return first[owner] + np.arange(int(counts.sum())) - starts[owner], owner
 
 
+def _distinct_count(ordered):
+    """How many distinct values an array holds whose equal values are together."""
+    return int(len(ordered) > 0) + int(np.count_nonzero(ordered[1:] != ordered[:-1]))
+
+
+def _stable_order(*keys):
+    """The stable order of the rows by ``keys`` (most significant first), as :func:`numpy.lexsort` of them
+    reversed, from one sort of the keys packed into one integer (a quarter of lexsort's time)."""
+    packed = np.zeros(len(keys[0]), np.int64)
+    room = 1
+    for key in keys:
+        key = np.asarray(key, np.int64)
+        low, high = (int(key.min()), int(key.max())) if len(key) else (0, 0)
+        room *= high - low + 1
+        if room >= 2 ** 63:
+            return np.lexsort(keys[::-1])
+        packed = packed * (high - low + 1) + (key - low)
+    return np.argsort(packed, kind="stable")
+
+
 def _front_to_back_runs(segments, plan, clip):
     """Every run, in the order the paper reads them: slabs, rows, then x front to back.
 
@@ -309,8 +329,8 @@ def render_ftb(segments, view, progress=None, clip=None, items=False):
     stats["unlit_segments_start"] = stats["unlit_segments_peak"] = len(lo)
 
     slab, row, z, y, starts, ends = _front_to_back_runs(segments, plan, clip)
-    stats["slices_read"] = len(np.unique(slab))
-    stats["rows_read"] = len(np.unique(row))
+    stats["slices_read"] = _distinct_count(slab)          # both come in order: count their changes
+    stats["rows_read"] = _distinct_count(row)
     stats["segments_read"] = len(starts)
     xc, yc, zc, half_x = plan.centres(z, y, starts, ends)
     line_first, line_last = plan.scanlines(yc)
@@ -321,14 +341,16 @@ def render_ftb(segments, view, progress=None, clip=None, items=False):
 
     # A MERGE call is one (row, scanline); its rank is how many rows of the same slab reached that
     # scanline before it.  Calls of one rank touch distinct scanlines, so they run together.
-    order = np.lexsort((run, row[run], line, slab[run]))
+    # The spans come in run order, which is (slab, row, x) order: sorted stably by (slab, line), they are
+    # in (slab, line, row, run) order.
+    order = _stable_order(slab[run], line)
     line, run, span_first, span_last = line[order], run[order], span_first[order], span_last[order]
     call_start = np.concatenate([[True], (line[1:] != line[:-1]) | (row[run][1:] != row[run][:-1])])
     call = np.cumsum(call_start) - 1
     group_start = np.concatenate([[True], (line[1:] != line[:-1]) | (slab[run][1:] != slab[run][:-1])])
     first_call_of_group = np.maximum.accumulate(np.where(group_start, call, 0))
     rank = call - first_call_of_group
-    order = np.lexsort((run, span_first, line, rank, slab[run]))
+    order = _stable_order(slab[run], rank, line, span_first)      # ties (within a call) stay in run order
     line, run, span_first, span_last, call = (a[order] for a in (line, run, span_first, span_last, call))
     step_key = slab[run] * (int(rank.max()) + 1 if len(rank) else 1) + rank[order]
     step_bounds = np.flatnonzero(np.concatenate([[True], step_key[1:] != step_key[:-1], [True]]))
