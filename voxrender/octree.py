@@ -111,9 +111,10 @@ class RegionOctree:
     def counts(self):
         """Nodes by colour, and by colour and level."""
         names = {WHITE: "white", BLACK: "black", GREY: "grey"}
-        result = {names[c]: int((self.color == c).sum()) for c in names}
-        result["by_level"] = {int(k): {names[c]: int(((self.level == k) & (self.color == c)).sum()) for c in names}
-                              for k in range(self.n + 1)}
+        table = np.bincount(np.asarray(self.level, np.int64) * 3 + self.color,
+                            minlength=3 * (self.n + 1)).reshape(self.n + 1, 3)      # one pass, not one per cell
+        result = {names[c]: int(table[:, c].sum()) for c in names}
+        result["by_level"] = {k: {names[c]: int(table[k, c]) for c in names} for k in range(self.n + 1)}
         return result
 
     @cached_property
@@ -296,13 +297,18 @@ def morton(points):
     >>> morton(np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [3, 3, 3]])).tolist()
     [1, 2, 4, 63]
     """
-    points = np.asarray(points, np.int64)
-    codes = np.zeros(len(points), np.int64)
-    small = not len(points) or int(points.max()) < 0x800
-    for axis in range(3):                 # 11 bits at a time, from a table
-        value = points[:, axis]
-        spread = _SPREAD[value & 0x7FF] if small else \
-            _SPREAD[value & 0x7FF] | (_SPREAD[(value >> 11) & 0x3FF] << 33)
+    points = np.asarray(points)
+    return _interleave(*(points[:, axis] for axis in range(3))) if len(points) else np.zeros(0, np.int64)
+
+
+def _interleave(x, y, z):
+    """:func:`morton` of the points with coordinate arrays ``x, y, z``."""
+    codes = np.zeros(len(x), np.int64)
+    for axis, value in enumerate((x, y, z)):          # 11 bits at a time, from a table
+        value = np.asarray(value, np.int64)
+        spread = _SPREAD[value & 0x7FF]
+        if len(value) and int(value.max()) >= 0x800:
+            spread |= _SPREAD[(value >> 11) & 0x3FF] << 33
         codes |= spread << axis
     return codes
 
@@ -314,7 +320,7 @@ def unmorton(codes):
     [[5, 3, 9]]
     """
     codes = np.asarray(codes, np.int64)
-    points = np.empty((len(codes), 3), np.int64)
+    points = np.empty((len(codes), 3), np.int32)                 # below 2^21: half the memory of int64
     for axis in range(3):
         bits = (codes >> axis) & 0x1249249249249249
         for shift, keep in ((2, 0x10C30C30C30C30C3), (4, 0x100F00F00F00F00F), (8, 0x1F0000FF0000FF),
@@ -344,9 +350,8 @@ def build_from_segments(segments):
     ny = segments.shape[1]
     starts, ends = np.asarray(segments.starts, np.int64), np.asarray(segments.ends, np.int64)
     lengths = ends - starts + 1
-    x = ranges(starts, lengths)
     row = np.repeat(segments.run_rows(), lengths)
-    return build_from_voxels(np.stack([x, row % ny, row // ny], axis=1), segments.shape)
+    return _build(_interleave(ranges(starts, lengths), row % ny, row // ny), segments.shape)
 
 
 def build_from_voxels(points, shape):
@@ -357,8 +362,13 @@ def build_from_voxels(points, shape):
     node's children together in label order (label = 7 - the child's Morton digit), so a level is its cells in
     descending Morton order.
     """
+    return _build(morton(points), shape)
+
+
+def _build(codes, shape):
+    """:func:`build_from_voxels` from the voxels' Morton codes."""
     n = max(0, int(np.ceil(np.log2(max(shape)))))
-    codes = _distinct(np.sort(morton(points), kind="stable"))   # raster order holds long sorted runs
+    codes = _distinct(np.sort(codes, kind="stable"))   # raster order holds long sorted runs
     full, occupied = [None] * (n + 1), [None] * (n + 1)
     full[n] = occupied[n] = codes
     for k in range(n, 0, -1):                       # cells of level k - 1: full when all 8 children are
