@@ -151,3 +151,10 @@ def test_the_surface_band_is_dilation_minus_erosion():
     cross = ndimage.generate_binary_structure(3, 1)
     expected = ndimage.binary_dilation(mask, cross) & ~ndimage.binary_erosion(mask, cross, border_value=0)
     assert np.array_equal(normals.surface_band(mask), expected)
+
+
+@pytest.mark.parametrize("slices", [1, 2, 4, 50])
+def test_the_band_found_in_blocks_of_slices_is_the_whole_band(slices):
+    mask = np.random.default_rng(6).random((9, 6, 7)) < 0.5
+    assert np.array_equal(np.ravel_multi_index(normals.band_voxels(mask, slices), mask.shape),
+                          np.flatnonzero(normals.surface_band(mask)))

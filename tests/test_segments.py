@@ -82,3 +82,14 @@ def test_load_rejects_other_and_truncated_files(tmp_path):
 def test_encode_rejects_2d():
     with pytest.raises(InputError):
         segments.encode(np.zeros((3, 3), bool))
+
+
+@pytest.mark.parametrize("block", [1, 7, 30, 1 << 24])
+def test_encoding_in_blocks_of_rows_gives_the_same_runs(monkeypatch, block):
+    mask = np.random.default_rng(9).random((4, 5, 8)) < 0.5
+    mask[0, 0, :] = True                      # runs that touch both ends of a row
+    monkeypatch.setattr(segments, "_BLOCK_VOXELS", block)
+    encoded = segments.encode(mask)
+    assert np.array_equal(encoded.to_mask(), mask)
+    assert encoded.segment_count == sum(len(np.flatnonzero(np.diff(np.r_[0, row, 0]) == 1))
+                                        for row in mask.reshape(-1, 8).astype(int))

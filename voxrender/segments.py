@@ -127,6 +127,9 @@ class Segments:
                 (int(np.min(self.starts)), int(np.max(self.ends))))
 
 
+_BLOCK_VOXELS = 1 << 24       # voxels compared at a time by encode
+
+
 def encode(mask, spacing=(1.0, 1.0, 1.0), meta=None):
     """Run-length encode a bool mask ``[z, y, x]`` into :class:`Segments`.
 
@@ -158,8 +161,15 @@ def encode(mask, spacing=(1.0, 1.0, 1.0), meta=None):
     nz, ny, nx = mask.shape
     lines = mask.reshape(nz * ny, nx)
     # the changes within rows, and those against the clear voxels at both ends, as places in a row padded at
-    # both ends (no padded copy of the volume: it costs more than the search)
-    inner = np.flatnonzero(lines[:, 1:] != lines[:, :-1])
+    # both ends; the rows compared a block at a time, in one buffer (new memory is slow to touch)
+    block = max(1, _BLOCK_VOXELS // max(nx, 1))
+    differ = np.empty((min(block, len(lines)), max(nx - 1, 0)), bool)
+    inner = []
+    for first in range(0, len(lines), block):
+        part = lines[first:first + block]
+        found = np.not_equal(part[:, 1:], part[:, :-1], out=differ[:len(part)])
+        inner.append(np.flatnonzero(found) + first * (nx - 1))
+    inner = np.concatenate(inner) if inner else np.zeros(0, np.int64)
     changes = np.concatenate([inner + inner // (nx - 1) * 2 + 1 if nx > 1 else inner,
                               np.flatnonzero(lines[:, 0]) * (nx + 1), np.flatnonzero(lines[:, -1]) * (nx + 1) + nx])
     changes.sort()
