@@ -137,6 +137,28 @@ class SurfaceNormals:
         """All the unit normals, decoded: x, y and z rows ``(3, M)`` float32."""
         return np.stack(_decode(np.ascontiguousarray(self.packed, np.int16).view(np.int32).ravel()))
 
+    @cached_property
+    def _bitmap(self):
+        """The band as bits, one per voxel of the volume and 64 to a word, and the count of band voxels before
+        each word: the place of any voxel in ``index`` without a search."""
+        index = np.asarray(self.index, np.int64)
+        words = np.zeros(int(np.prod(self.shape, dtype=np.int64)) // 64 + 2, np.uint64)
+        word = index >> 6
+        first = np.flatnonzero(np.r_[True, word[1:] != word[:-1]]) if len(word) else word
+        words[word[first]] = np.bitwise_or.reduceat(np.uint64(1) << (index & 63).astype(np.uint64), first)
+        before = np.zeros(len(words), np.int64)
+        np.cumsum(np.bitwise_count(words)[:-1], out=before[1:])
+        return words, before
+
+    def _place(self, linear):
+        """For voxel numbers ``linear`` (any integers; those off the volume are not there): their place in
+        ``index`` (where they are, or would be), and whether they are there."""
+        words, before = self._bitmap
+        clipped = np.clip(linear, 0, len(words) * 64 - 1)
+        word, bit = words[clipped >> 6], (clipped & 63).astype(np.uint64)
+        place = before[clipped >> 6] + np.bitwise_count(word & ((np.uint64(1) << bit) - np.uint64(1)))
+        return place, ((word >> bit) & np.uint64(1)).astype(bool) & (clipped == linear)
+
     def at(self, points):
         """Normals ``(N, 3)`` at object points ``(N, 3)`` (x, y, z), interpolated from the eight voxel centres
         around each; NaN where none of the eight has one."""
@@ -154,16 +176,23 @@ class SurfaceNormals:
         inside = (y + dy >= 0) & (y + dy < ny) & (z + dz >= 0) & (z + dz < nz)
         linear = ((z + dz) * ny + (y + dy)) * nx + x                                 # (4, N)
         top = len(index) - 1
-        slot = np.minimum(np.searchsorted(index, linear.astype(index.dtype, copy=False)), top)
-        there = index[slot] == linear              # at x = -1 that is the last voxel of the row before
+        many = "unit" in self.__dict__ or 8 * len(points) >= len(index)      # as many corners as normals
+        if many:                                    # looked up in the bitmap, made once for every later picture
+            slot, there = self._place(linear)
+            after, there_next = slot + there, self._place(linear + 1)[1]
+        else:                                       # a small picture: a binary search of the index
+            slot = np.minimum(np.searchsorted(index, linear.astype(index.dtype, copy=False)), top)
+            there = index[slot] == linear           # at x = -1 that is the last voxel of the row before
+            after = slot + there
+            there_next = index[np.minimum(after, top)] == linear + 1
         first = inside & (x >= 0) & (x < nx) & there
-        after = np.minimum(slot + there, top)
-        second = inside & (x + 1 >= 0) & (x + 1 < nx) & (index[after] == linear + 1)
+        second = inside & (x + 1 >= 0) & (x + 1 < nx) & there_next
+        slot, after = np.minimum(slot, top), np.minimum(after, top)
         weight_yz = np.where(dy, fy, 1 - fy) * np.where(dz, fz, 1 - fz)             # (4, N)
         # (8, N): x, then x + 1; a missing corner weighs 0 (decoding all is cheaper than picking those found)
         weights = np.concatenate([np.where(first, (1 - fx) * weight_yz, 0), np.where(second, fx * weight_yz, 0)])
         slots = np.concatenate([slot, after]).ravel()
-        if "unit" in self.__dict__ or len(slots) >= len(index):      # decoded once, for every later picture
+        if many:                                                  # decoded once, for every later picture
             corners = self.unit[:, slots]
         else:                                                     # a small picture: decode just its corners
             corners = _decode(np.ascontiguousarray(self.packed, np.int16).view(np.int32).ravel()[slots])
