@@ -25,10 +25,11 @@ from functools import cached_property
 import numpy as np
 
 from .errors import InputError
+from .segments import expand_runs, ranges
 
 __all__ = ["WHITE", "BLACK", "GREY", "RegionOctree", "build", "build_from_segments", "build_from_voxels",
            "linear_octree", "code_strings", "codes_to_mask", "sections", "from_sections", "CHILD_OFFSETS", "morton",
-           "unmorton", "Adjacency", "ranges"]
+           "unmorton", "Adjacency"]
 
 WHITE, BLACK, GREY = 0, 1, 2
 X_MARKER = 8  # the digit X, which sorts after 0..7
@@ -71,17 +72,6 @@ class Adjacency(NamedTuple):
     def neighbours(self, rows):
         """The neighbours of every one of ``rows``, one after another."""
         return self.indices[ranges(self.indptr[rows], self.indptr[np.asarray(rows) + 1] - self.indptr[rows])]
-
-
-def ranges(starts, counts):
-    """``starts[i], starts[i] + 1, ... (counts[i] numbers)`` for every ``i``, one after another.
-
-    >>> ranges(np.array([5, 0]), np.array([2, 3])).tolist()
-    [5, 6, 0, 1, 2]
-    """
-    starts, counts = np.asarray(starts, np.int64), np.asarray(counts, np.int64)
-    ends = np.cumsum(counts)
-    return np.repeat(starts - ends + counts, counts) + np.arange(ends[-1] if len(ends) else 0)
 
 
 @dataclass
@@ -348,10 +338,8 @@ def build_from_segments(segments):
     """The region octree of run-length :class:`~voxrender.segments.Segments`, without making their mask: the
     work and memory grow with the object, not with the octree's cube."""
     ny = segments.shape[1]
-    starts, ends = np.asarray(segments.starts, np.int64), np.asarray(segments.ends, np.int64)
-    lengths = ends - starts + 1
-    row = np.repeat(segments.run_rows(), lengths)
-    return _build(_interleave(ranges(starts, lengths), row % ny, row // ny), segments.shape)
+    row, x = expand_runs(segments.run_rows(), segments.starts, segments.ends)
+    return _build(_interleave(x, row % ny, row // ny), segments.shape)
 
 
 def build_from_voxels(points, shape):

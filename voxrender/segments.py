@@ -127,6 +127,31 @@ class Segments:
                 (int(np.min(self.starts)), int(np.max(self.ends))))
 
 
+def ranges(starts, counts, owners=False):
+    """``starts[i], starts[i] + 1, ... (counts[i] numbers)`` for every ``i``, one after another; with ``owners``,
+    also the ``i`` each number belongs to.  The voxels of runs, the pixels of spans, the rows of a CSR table.
+
+    >>> ranges(np.array([5, 0]), np.array([2, 3])).tolist()
+    [5, 6, 0, 1, 2]
+    >>> ranges(np.array([5, 0]), np.array([2, 3]), owners=True)[1].tolist()
+    [0, 0, 1, 1, 1]
+    """
+    starts, counts = np.asarray(starts, np.int64), np.asarray(counts, np.int64)
+    ends = np.cumsum(counts)
+    values = np.repeat(starts - ends + counts, counts) + np.arange(ends[-1] if len(ends) else 0)
+    return (values, np.repeat(np.arange(len(counts)), counts)) if owners else values
+
+
+def expand_runs(rows, starts, ends):
+    """``(row, x)`` of every voxel of the runs ``[starts, ends]`` of rows ``rows``.
+
+    >>> expand_runs(np.array([0, 3]), np.array([1, 4]), np.array([2, 4]))
+    (array([0, 0, 3]), array([1, 2, 4]))
+    """
+    lengths = np.asarray(ends, np.int64) - starts + 1
+    return np.repeat(rows, lengths), ranges(starts, lengths)
+
+
 _BLOCK_VOXELS = 1 << 24       # voxels compared at a time by encode
 
 

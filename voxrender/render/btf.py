@@ -25,10 +25,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..segments import expand_runs
 from . import oracle
 from .geometry import paint_boxes
 
-__all__ = ["render_btf", "render_btf_literal", "back_to_front", "expand_runs", "slice_runs"]
+__all__ = ["render_btf", "render_btf_literal", "back_to_front", "slice_runs"]
 
 
 def back_to_front(n, direction):
@@ -39,18 +40,6 @@ def back_to_front(n, direction):
     """
     order = np.arange(n)
     return order[::-1] if direction > 0 else order
-
-
-def expand_runs(rows, starts, ends):
-    """``(y, x)`` of every voxel of the runs ``[starts, ends]`` of rows ``rows``.
-
-    >>> expand_runs(np.array([0, 3]), np.array([1, 4]), np.array([2, 4]))
-    (array([0, 0, 3]), array([1, 2, 4]))
-    """
-    lengths = ends.astype(np.int64) - starts + 1
-    first = np.cumsum(lengths) - lengths
-    x = np.repeat(starts.astype(np.int64) - first, lengths) + np.arange(int(lengths.sum()))
-    return np.repeat(rows, lengths), x
 
 
 def slice_runs(segments, z, view, clip=None):

@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..segments import ranges
 from ..view import View
 from .btf import back_to_front
 from .geometry import box_rows, ray_box_entry, row_spans
@@ -148,13 +149,6 @@ def new_stats():
 
 # ------------------------------------------------------------------ the vectorised renderer
 
-def _ranges(first, counts):
-    """Concatenated ``arange(first[k], first[k] + counts[k])`` and the index ``k`` of each element."""
-    owner = np.repeat(np.arange(len(counts)), counts)
-    starts = np.cumsum(counts) - counts
-    return first[owner] + np.arange(int(counts.sum())) - starts[owner], owner
-
-
 def _distinct_count(ordered):
     """How many distinct values an array holds whose equal values are together."""
     return int(len(ordered) > 0) + int(np.count_nonzero(ordered[1:] != ordered[:-1]))
@@ -189,7 +183,7 @@ def _front_to_back_runs(segments, plan, clip):
     counts = offsets[rows + 1] - offsets[rows]
     present = counts > 0
     rows, slab, counts = rows[present], slab[present], counts[present]
-    rank, owner = _ranges(np.zeros(len(rows), np.int64), counts)
+    rank, owner = ranges(np.zeros(len(rows), np.int64), counts, owners=True)
     if not plan.x_ascending:
         rank = counts[owner] - 1 - rank
     index = offsets[rows][owner] + rank
@@ -280,7 +274,7 @@ def _merge_batch(lo, hi, line, key_first, key_last, stride):
     # Painting: the part of each span not already painted by earlier spans of its call, on unlit pixels.
     todo = paint_lo <= key_last
     pieces = np.where(todo, np.maximum(right_of_span - paint_from, 0), 0)
-    k, span = _ranges(paint_from, pieces)
+    k, span = ranges(paint_from, pieces, owners=True)
     piece_lo, piece_hi = np.maximum(lo[k], paint_lo[span]), np.minimum(hi[k], key_last[span])
     lo, hi = _remove_painted(lo, hi, k, piece_lo, piece_hi)
     return counts, full, (span, piece_lo, piece_hi), lo, hi
@@ -334,7 +328,7 @@ def render_ftb(segments, view, progress=None, clip=None, items=False):
     stats["segments_read"] = len(starts)
     xc, yc, zc, half_x = plan.centres(z, y, starts, ends)
     line_first, line_last = plan.scanlines(yc)
-    line, run = _ranges(line_first, np.maximum(line_last - line_first + 1, 0))
+    line, run = ranges(line_first, np.maximum(line_last - line_first + 1, 0), owners=True)
     span_first, span_last = plan.spans(line, xc[run], yc[run], half_x[run])
     keep = span_first <= span_last
     line, run, span_first, span_last = line[keep], run[keep], span_first[keep], span_last[keep]
@@ -378,7 +372,7 @@ def render_ftb(segments, view, progress=None, clip=None, items=False):
     # Every lit pixel was painted once; its depth is where its ray enters the box of the span that lit it.
     if painted_spans:
         piece_lo, piece_hi = np.concatenate(painted_lo), np.concatenate(painted_hi)
-        keys, piece = _ranges(piece_lo, piece_hi - piece_lo + 1)
+        keys, piece = ranges(piece_lo, piece_hi - piece_lo + 1, owners=True)
         owner = np.concatenate(painted_spans)[piece]
         pixel_line, r = line[owner], run[owner]
         walk_x = keys - pixel_line * stride - 1

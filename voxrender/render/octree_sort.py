@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import octree
+from ..segments import ranges
 from ..view import vpn_from_angles
 from .geometry import paint_boxes
 from .octree_btf import region_octree
@@ -70,10 +71,7 @@ def voxel_codes(tree):
         is_digit = digits[:, d] != octree.X_MARKER
         prefix = np.where(is_digit, prefix * 8 + digits[:, d], prefix * 8)
         below += ~is_digit
-    counts = 8 ** below
-    owner = np.repeat(np.arange(len(digits)), counts)
-    offset = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
-    return prefix[owner] + offset
+    return ranges(prefix, 8 ** below)
 
 
 def decode(codes, n):
