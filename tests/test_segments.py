@@ -93,3 +93,15 @@ def test_encoding_in_blocks_of_rows_gives_the_same_runs(monkeypatch, block):
     assert np.array_equal(encoded.to_mask(), mask)
     assert encoded.segment_count == sum(len(np.flatnonzero(np.diff(np.r_[0, row, 0]) == 1))
                                         for row in mask.reshape(-1, 8).astype(int))
+
+
+@pytest.mark.parametrize("block", [1, 7, 1 << 24])
+def test_labels_encoded_in_blocks_of_rows_give_the_same_runs(monkeypatch, block):
+    values = np.random.default_rng(10).integers(0, 3, (3, 4, 6))
+    values[0, 0, :] = 2                       # a stretch that touches both ends of a row
+    monkeypatch.setattr(segments, "_BLOCK_VOXELS", block)
+    encoded = segments.encode_labels(values)
+    again = np.zeros(values.size, int)
+    for row, start, end, label in zip(encoded.run_rows(), encoded.starts, encoded.ends, encoded.labels):
+        again[row * 6 + start:row * 6 + end + 1] = label
+    assert np.array_equal(again.reshape(values.shape), values)

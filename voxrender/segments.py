@@ -155,6 +155,26 @@ def expand_runs(rows, starts, ends):
 _BLOCK_VOXELS = 1 << 24       # voxels compared at a time by encode
 
 
+def _row_changes(lines):
+    """Where a voxel differs from the one before it along its row (``lines`` ``(rows, nx)``), each row with a
+    clear voxel added at both ends: sorted places in rows of ``nx + 1`` (place ``c`` of a row is between its
+    voxels ``c - 1`` and ``c``).  The rows are compared a block at a time in one buffer, with no padded copy
+    of the volume (new memory is slow to touch)."""
+    count, nx = lines.shape
+    block = max(1, _BLOCK_VOXELS // max(nx, 1))
+    differ = np.empty((min(block, count), max(nx - 1, 0)), bool)
+    inner = []
+    for first in range(0, count, block):
+        part = lines[first:first + block]
+        found = np.not_equal(part[:, 1:], part[:, :-1], out=differ[:len(part)])
+        inner.append(np.flatnonzero(found) + first * (nx - 1))
+    inner = np.concatenate(inner) if inner else np.zeros(0, np.int64)
+    changes = np.concatenate([inner + inner // (nx - 1) * 2 + 1 if nx > 1 else inner,
+                              np.flatnonzero(lines[:, 0]) * (nx + 1), np.flatnonzero(lines[:, -1]) * (nx + 1) + nx])
+    changes.sort()
+    return changes
+
+
 def encode(mask, spacing=(1.0, 1.0, 1.0), meta=None):
     """Run-length encode a bool mask ``[z, y, x]`` into :class:`Segments`.
 
@@ -184,20 +204,7 @@ def encode(mask, spacing=(1.0, 1.0, 1.0), meta=None):
     if mask.ndim != 3:
         raise InputError(f"a mask must be 3-D [z, y, x], got shape {mask.shape}")
     nz, ny, nx = mask.shape
-    lines = mask.reshape(nz * ny, nx)
-    # the changes within rows, and those against the clear voxels at both ends, as places in a row padded at
-    # both ends; the rows compared a block at a time, in one buffer (new memory is slow to touch)
-    block = max(1, _BLOCK_VOXELS // max(nx, 1))
-    differ = np.empty((min(block, len(lines)), max(nx - 1, 0)), bool)
-    inner = []
-    for first in range(0, len(lines), block):
-        part = lines[first:first + block]
-        found = np.not_equal(part[:, 1:], part[:, :-1], out=differ[:len(part)])
-        inner.append(np.flatnonzero(found) + first * (nx - 1))
-    inner = np.concatenate(inner) if inner else np.zeros(0, np.int64)
-    changes = np.concatenate([inner + inner // (nx - 1) * 2 + 1 if nx > 1 else inner,
-                              np.flatnonzero(lines[:, 0]) * (nx + 1), np.flatnonzero(lines[:, -1]) * (nx + 1) + nx])
-    changes.sort()
+    changes = _row_changes(mask.reshape(nz * ny, nx))
     rows, columns = np.divmod(changes, nx + 1)
     starts, ends = columns[0::2], columns[1::2] - 1
     offsets = np.zeros(nz * ny + 1, np.int64)
@@ -221,13 +228,11 @@ def encode_labels(label_map, spacing=(1.0, 1.0, 1.0), meta=None):
     if values.ndim != 3:
         raise InputError(f"a label map must be 3-D [z, y, x], got shape {values.shape}")
     nz, ny, nx = values.shape
-    padded = np.zeros((nz * ny, nx + 2), np.uint16)
-    padded[:, 1:-1] = values.reshape(nz * ny, nx)
+    lines = values.reshape(nz * ny, nx)
     # every place where a voxel differs from its left neighbour begins a stretch that lasts to the next one
-    flat = padded[:, 1:]
-    bounds = np.flatnonzero(flat != padded[:, :-1])
+    bounds = _row_changes(lines)
     rows, columns = np.divmod(bounds, nx + 1)
-    labels = flat.ravel()[bounds]
+    labels = np.where(columns < nx, lines[rows, np.minimum(columns, nx - 1)], 0)     # column nx: the clear end
     ends = np.append(bounds[1:], bounds[-1] + 1 if len(bounds) else 0) - 1 - rows * (nx + 1)
     kept = labels != 0                      # a non-zero stretch always ends within its row (the padding is 0)
     offsets = np.zeros(nz * ny + 1, np.int64)
