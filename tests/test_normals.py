@@ -161,3 +161,42 @@ def test_the_band_found_in_blocks_of_slices_is_the_whole_band(slices):
     mask = np.random.default_rng(6).random((9, 6, 7)) < 0.5
     assert np.array_equal(np.ravel_multi_index(normals.band_voxels(mask, slices), mask.shape),
                           np.flatnonzero(normals.surface_band(mask)))
+
+
+def test_cut_faces_take_their_own_normal_and_natural_surfaces_keep_the_gradient():
+    from voxrender.render.clip import Clip
+
+    mask = np.zeros((12, 12, 12), bool)
+    mask[:, 3:9, 3:9] = True                       # a bar through the whole volume along z: cut by its two ends
+    encoded = segments.encode(mask)
+    field = normals.surface_normals(mask)
+    view = View(0, 0, 0, (40, 40), 2.0)            # looking along +z: the bar's end at z = -0.5 faces the viewer
+    depth = render(encoded, view, "ftb").depth
+    got = normals.normal_image(depth, view, mask.shape, field, encoded)
+    bar = np.isfinite(depth)
+    assert np.allclose(got[bar], (0, 0, -1), atol=1e-6)        # all of it is the cut end
+    # seen at a slant, the bar's own sides keep the normals of its grey values
+    slant = View(30, 20, 0, (40, 40), 2.0)
+    depth = render(encoded, slant, "ftb").depth
+    rows, columns, points = slant.hit_points(depth, mask.shape, beyond=1e-4)
+    got = normals.normal_image(depth, slant, mask.shape, field, encoded)[rows, columns]
+    own = points[:, 2] > -0.49
+    assert own.any() and (~own).any()
+    assert np.allclose(got[own], field.at(points[own]) @ slant.matrix.T, atol=1e-6, equal_nan=True)
+    assert np.allclose(got[~own], np.array([0, 0, -1.0]) @ slant.matrix.T, atol=1e-6)
+    # a clip limit in x: the face it cuts faces +x
+    clip = Clip(x=(None, 6))
+    side = View(0, 90, 0, (40, 40), 2.0)           # looking along -x
+    depth = render(encoded, side, "ftb", clip=clip).depth
+    rows, columns, points = side.hit_points(depth, mask.shape, beyond=1e-4)
+    got = normals.normal_image(depth, side, mask.shape, field, encoded, clip)[rows, columns]
+    on_limit = np.abs(points[:, 0] - 5.5) < 1e-3
+    assert on_limit.any() and np.allclose(got[on_limit], np.array([1.0, 0, 0]) @ side.matrix.T, atol=1e-6)
+    # the cut plane: the faces it uncovers face the viewer; without the object (segments), nothing is a cut
+    cut = Clip(cut_depth=0.0)
+    depth = render(encoded, view, "ftb", clip=cut).depth
+    rows, columns, points = view.hit_points(depth, mask.shape, beyond=1e-4)
+    got = normals.normal_image(depth, view, mask.shape, field, encoded, cut)[rows, columns]
+    assert np.allclose(got, (0, 0, -1), atol=1e-6)
+    unknown = normals.cut_normals(side, points, view.hit_points(depth, mask.shape, beyond=-1e-3)[2], mask.shape)
+    assert np.isnan(unknown).all()

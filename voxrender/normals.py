@@ -18,7 +18,7 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["SurfaceNormals", "surface_band", "band_voxels", "surface_normals", "octahedral_encode", "octahedral_decode",
+__all__ = ["SurfaceNormals", "surface_band", "band_voxels", "cut_normals", "surface_normals", "octahedral_encode", "octahedral_decode",
            "normal_image", "kept"]
 
 
@@ -303,14 +303,63 @@ def kept(segments):
     return segments.normals
 
 
-def normal_image(depth, view, shape, normals):
+def normal_image(depth, view, shape, normals, segments=None, clip=None):
     """Unit normals ``(H, W, 3)`` in image space (toward the viewer: negative Z') at each pixel's hit point;
-    NaN where the ray meets nothing or no normal is known."""
+    NaN where the ray meets nothing or no normal is known.  Where the object was cut, by the volume's edge or
+    by ``clip`` (:class:`~voxrender.render.clip.Clip`, with the ``segments`` it cut), the cut face's own normal
+    (:func:`cut_normals`)."""
     height, width = depth.shape
     out = np.full((height, width, 3), np.nan, np.float32)
     covered = np.isfinite(depth)
     if not covered.any():
         return out
+    rows, columns, points = view.hit_points(depth, shape, beyond=1e-4)
+    found = normals.at(points) @ view.matrix.T                       # object -> image space
+    cut = cut_normals(view, points, view.hit_points(depth, shape, beyond=-1e-3)[2], shape, segments, clip)
+    on_cut = np.isfinite(cut[:, 0])
+    found[on_cut] = cut[on_cut]
+    out[rows, columns] = found
+    return out
+
+
+def cut_normals(view, inside, before, shape, segments=None, clip=None):
+    """The image-space normals of the cut faces among hit points: NaN where a hit is on the object's own surface.
+
+    A hit is on a cut face when the voxel the ray crossed just before it (``before``; ``inside`` are the hit
+    points themselves, both ``(N, 3)`` x, y, z) lies beyond the volume's edge (where a scan ends inside the body)
+    or is a voxel of ``segments`` that ``clip`` removed.  Behind a cut the grey values are the tissue's, not a
+    surface's, and their gradient would speckle it: a face cut by the clip's cut plane faces the viewer, one cut
+    by the volume's edge or a clip limit faces out along its axis.
+
+    >>> from voxrender.view import View
+    >>> view = View(size=(1, 1), scale=1.0)                        # looking along +z
+    >>> cut_normals(view, np.array([[1.0, 1.0, -0.4999]]), np.array([[1.0, 1.0, -0.501]]), (3, 3, 3)).tolist()
+    [[0.0, 0.0, -1.0]]
+    """
+    here = np.floor(np.asarray(inside) + 0.5).astype(np.int64)
+    there = np.floor(np.asarray(before) + 0.5).astype(np.int64)
+    out = np.full(here.shape, np.nan, np.float32)
+    beyond_edge = ((there < 0) | (there >= np.array(shape[::-1]))).any(axis=1)
+    removed = np.zeros(len(here), bool)
+    by_plane = np.zeros(len(here), bool)
+    if clip is not None and clip.active and segments is not None:
+        from .labels import label_at
+
+        x, y, z = there.T
+        removed = ~beyond_edge & ~clip.keeps(x, y, z, view, shape)
+        removed[removed] = label_at(segments, x[removed], y[removed], z[removed]) > 0
+        if clip.cut_depth is not None:       # removed by the cut plane rather than by a clip limit
+            by_plane = removed & (view.to_image(x, y, z, shape)[2] < clip.cut_depth - 1e-9)
+    across = (beyond_edge | removed) & ~by_plane & (there != here).any(axis=1)
+    step = (there - here)[across]
+    # the face the ray came in by: of the faces between the two voxels, the one the hit lies on
+    gap = np.where(step != 0, np.abs(np.asarray(inside)[across] - (here[across] + step / 2)), np.inf)
+    axis = np.argmin(gap, axis=1)
+    face = np.zeros(step.shape, np.float64)
+    face[np.arange(len(step)), axis] = np.sign(step[np.arange(len(step)), axis])
+    out[across] = face @ view.matrix.T
+    out[by_plane] = (0.0, 0.0, -1.0)
+    return out
     rows, columns, points = view.hit_points(depth, shape, beyond=1e-4)
     found = normals.at(points) @ view.matrix.T                       # object -> image space
     out[rows, columns] = found

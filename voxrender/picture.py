@@ -183,7 +183,8 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
     if options.shading == "gradient":
         from .normals import kept, normal_image as at_hits
 
-        normal_image = at_hits(image.depth, image.view, segments.shape, normals or kept(segments))
+        normal_image = at_hits(image.depth, image.view, segments.shape, normals or kept(segments), segments,
+                               options.clip)
     occlusion = shade.ambient_occlusion(image.depth, image.view.scale) if options.ao else None
     rgb = shade.shade(image.depth, options.shading, image.view.scale, options.light, colour,
                       options.background, normal_image, occlusion)
