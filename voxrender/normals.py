@@ -6,8 +6,9 @@ gradient (a 3 x 3 x 3 Sobel kernel: a central difference along the axis, smoothe
 the surface *band* (object voxels with an empty 6-neighbour and empty voxels with an object 6-neighbour) and
 keeps it, octahedrally quantised to two 16-bit numbers, in a :class:`SurfaceNormals`.  Where no grey values
 exist (a label map, a binary ``.npy``, an old ``.vxs``) the binary mask is used instead, through the derivative
-of a Gaussian of one voxel (5 x 5 x 5), which smooths its steps.  At a picture's hit points the normals of the eight surrounding voxel centres are
-interpolated trilinearly, so every method, whatever its depth image came from, gets the same smooth normals.
+of a Gaussian of one voxel (5 x 5 x 5), which smooths its steps.  At a picture's hit points the normals of the
+eight surrounding voxel centres are interpolated trilinearly, so every method, whatever its depth image came from,
+gets the same smooth normals; a hit on a face the object was cut by takes that face's normal (:func:`cut_normals`).
 """
 
 from __future__ import annotations
@@ -18,8 +19,8 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["SurfaceNormals", "surface_band", "band_voxels", "cut_normals", "surface_normals", "octahedral_encode", "octahedral_decode",
-           "normal_image", "kept"]
+__all__ = ["SurfaceNormals", "surface_band", "band_voxels", "cut_normals", "surface_normals", "octahedral_encode",
+           "octahedral_decode", "normal_image", "kept"]
 
 
 
