@@ -152,7 +152,7 @@ def expand_runs(rows, starts, ends):
     return np.repeat(rows, lengths), ranges(starts, lengths)
 
 
-_BLOCK_VOXELS = 1 << 24       # voxels compared at a time by encode
+_BLOCK_VOXELS = 1 << 24       # voxels compared at a time when finding runs
 
 
 def _row_changes(lines):
