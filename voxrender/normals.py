@@ -147,7 +147,7 @@ class SurfaceNormals:
         word = index >> 6
         first = np.flatnonzero(np.r_[True, word[1:] != word[:-1]]) if len(word) else word
         words[word[first]] = np.bitwise_or.reduceat(np.uint64(1) << (index & 63).astype(np.uint64), first)
-        before = np.zeros(len(words), np.int64)
+        before = np.zeros(len(words), np.int32 if len(index) < 2 ** 31 else np.int64)
         np.cumsum(np.bitwise_count(words)[:-1], out=before[1:])
         return words, before
 
@@ -178,10 +178,12 @@ class SurfaceNormals:
         linear = ((z + dz) * ny + (y + dy)) * nx + x                                 # (4, N)
         top = len(index) - 1
         many = "unit" in self.__dict__ or 8 * len(points) >= len(index)      # as many corners as normals
-        if many:                                    # looked up in the bitmap, made once for every later picture
+        # the bitmap grows with the volume, not the object: a small object in a vast volume keeps the search
+        if many and ("_bitmap" in self.__dict__ or nz * ny * nx // 64 <= 16 * len(index)):
+            # looked up in the bitmap, made once for every later picture
             slot, there = self._place(linear)
             after, there_next = slot + there, self._place(linear + 1)[1]
-        else:                                       # a small picture: a binary search of the index
+        else:                                       # a small picture, or object in a vast volume: a search
             slot = np.minimum(np.searchsorted(index, linear.astype(index.dtype, copy=False)), top)
             there = index[slot] == linear           # at x = -1 that is the last voxel of the row before
             after = slot + there
