@@ -202,5 +202,5 @@ def test_cut_faces_take_their_own_normal_and_natural_surfaces_keep_the_gradient(
     rows, columns, points = view.hit_points(depth, mask.shape, beyond=1e-4)
     got = normals.normal_image(depth, view, mask.shape, field, encoded, cut)[rows, columns]
     assert np.allclose(got, (0, 0, -1), atol=1e-6)
-    unknown = normals.cut_normals(side, points, view.hit_points(depth, mask.shape, beyond=-1e-3)[2], mask.shape)
+    unknown = normals.cut_normals(view, points, mask.shape, clip=cut)
     assert np.isnan(unknown).all()

@@ -318,30 +318,36 @@ def normal_image(depth, view, shape, normals, segments=None, clip=None):
         return out
     rows, columns, points = view.hit_points(depth, shape, beyond=1e-4)
     found = normals.at(points) @ view.matrix.T                       # object -> image space
-    cut = cut_normals(view, points, view.hit_points(depth, shape, beyond=-1e-3)[2], shape, segments, clip)
+    cut = cut_normals(view, points, shape, segments, clip)
     on_cut = np.isfinite(cut[:, 0])
     found[on_cut] = cut[on_cut]
     out[rows, columns] = found
     return out
 
 
-def cut_normals(view, inside, before, shape, segments=None, clip=None):
-    """The image-space normals of the cut faces among hit points: NaN where a hit is on the object's own surface.
+def cut_normals(view, points, shape, segments=None, clip=None):
+    """The image-space normals of the cut faces among hit points ``(N, 3)`` (x, y, z, just inside the object):
+    NaN where a hit is on the object's own surface.
 
-    A hit is on a cut face when the voxel the ray crossed just before it (``before``; ``inside`` are the hit
-    points themselves, both ``(N, 3)`` x, y, z) lies beyond the volume's edge (where a scan ends inside the body)
-    or is a voxel of ``segments`` that ``clip`` removed.  Behind a cut the grey values are the tissue's, not a
-    surface's, and their gradient would speckle it: a face cut by the clip's cut plane faces the viewer, one cut
-    by the volume's edge or a clip limit faces out along its axis.
+    A hit is on a cut face when the voxel the ray crossed just before it lies beyond the volume's edge (where a
+    scan ends inside the body) or is a voxel of ``segments`` that ``clip`` removed.  Behind a cut the grey values
+    are the tissue's, not a surface's, and their gradient would speckle it: a face cut by the clip's cut plane
+    faces the viewer, one cut by the volume's edge or a clip limit faces out along its axis.
 
     >>> from voxrender.view import View
     >>> view = View(size=(1, 1), scale=1.0)                        # looking along +z
-    >>> cut_normals(view, np.array([[1.0, 1.0, -0.4999]]), np.array([[1.0, 1.0, -0.501]]), (3, 3, 3)).tolist()
-    [[0.0, 0.0, -1.0]]
+    >>> cut_normals(view, np.array([[1.0, 1.0, -0.4999], [1.0, 1.0, 1.5001]]), (3, 3, 3)).tolist()
+    [[0.0, 0.0, -1.0], [nan, nan, nan]]
     """
-    here = np.floor(np.asarray(inside) + 0.5).astype(np.int64)
-    there = np.floor(np.asarray(before) + 0.5).astype(np.int64)
-    out = np.full(here.shape, np.nan, np.float32)
+    points = np.asarray(points, np.float64)
+    out = np.full(points.shape, np.nan, np.float32)
+    if clip is None or not clip.active:          # only the volume's edge cuts: look at the hits in its last half voxel
+        chosen = np.flatnonzero(((points < 0) | (points > np.array(shape[::-1]) - 1)).any(axis=1))
+    else:
+        chosen = np.arange(len(points))
+    inside = points[chosen]
+    here = np.floor(inside + 0.5).astype(np.int64)
+    there = np.floor(inside - 1.1e-3 * view.matrix[2] + 0.5).astype(np.int64)     # a step back along the ray
     beyond_edge = ((there < 0) | (there >= np.array(shape[::-1]))).any(axis=1)
     removed = np.zeros(len(here), bool)
     by_plane = np.zeros(len(here), bool)
@@ -356,12 +362,12 @@ def cut_normals(view, inside, before, shape, segments=None, clip=None):
     across = (beyond_edge | removed) & ~by_plane & (there != here).any(axis=1)
     step = (there - here)[across]
     # the face the ray came in by: of the faces between the two voxels, the one the hit lies on
-    gap = np.where(step != 0, np.abs(np.asarray(inside)[across] - (here[across] + step / 2)), np.inf)
+    gap = np.where(step != 0, np.abs(inside[across] - (here[across] + step / 2)), np.inf)
     axis = np.argmin(gap, axis=1)
     face = np.zeros(step.shape, np.float64)
     face[np.arange(len(step)), axis] = np.sign(step[np.arange(len(step)), axis])
-    out[across] = face @ view.matrix.T
-    out[by_plane] = (0.0, 0.0, -1.0)
+    out[chosen[across]] = face @ view.matrix.T
+    out[chosen[by_plane]] = (0.0, 0.0, -1.0)
     return out
     rows, columns, points = view.hit_points(depth, shape, beyond=1e-4)
     found = normals.at(points) @ view.matrix.T                       # object -> image space
