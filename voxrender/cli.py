@@ -47,8 +47,8 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 # ---------------------------------------------------------------- flags and their parsers
 
 # Library parameters whose flag is not "--" + the name with dashes.
-FLAGS = {"picture": "--pattern", "depth": "--depth-out", "normals": "--normals-out", "inputs": "INPUT", "compare": "--compare-rays",
-         "views": "the manifest's views"}
+FLAGS = {"picture": "--pattern", "depth": "--depth-out", "normals": "--normals-out", "inputs": "INPUT",
+         "compare": "--compare-rays", "views": "the manifest's views"}
 
 
 def flag(parameter):

@@ -57,12 +57,17 @@ def octahedral_encode(normals):
 
 def octahedral_decode(packed):
     """``(N, 2)`` int16 back to unit vectors ``(N, 3)`` float32."""
-    return np.stack(_decode(np.ascontiguousarray(packed, np.int16).view(np.int32).ravel()), axis=1)
+    return np.stack(_decode(_words(packed)), axis=1)
+
+
+def _words(packed):
+    """Packed normals ``(N, 2)`` int16 as one int32 word each: a gather moves one word, not a pair."""
+    return np.ascontiguousarray(packed, np.int16).view(np.int32).ravel()
 
 
 def _decode(words):
-    """The unit vectors of packed normals each read as one int32 word (a cheaper gather than int16 pairs):
-    their x, y and z, each a contiguous float32 array."""
+    """The unit vectors of packed normals as words (:func:`_words`): their x, y and z, each a contiguous
+    float32 array."""
     pair = words.view(np.int16).reshape(-1, 2)
     x, y = pair[:, 0] * np.float32(1 / 32767), pair[:, 1] * np.float32(1 / 32767)
     z = 1 - np.abs(x) - np.abs(y)
@@ -136,7 +141,7 @@ class SurfaceNormals:
     @cached_property
     def unit(self):
         """All the unit normals, decoded: x, y and z rows ``(3, M)`` float32."""
-        return np.stack(_decode(np.ascontiguousarray(self.packed, np.int16).view(np.int32).ravel()))
+        return np.stack(_decode(_words(self.packed)))
 
     @cached_property
     def _bitmap(self):
@@ -200,7 +205,7 @@ class SurfaceNormals:
         if many:                                                  # decoded once, for every later picture
             corners = np.take(self.unit, slots, axis=1)         # (take: a tenth of the time of [:, slots])
         else:                                                     # a small picture: decode just its corners
-            corners = _decode(np.take(np.ascontiguousarray(self.packed, np.int16).view(np.int32).ravel(), slots))
+            corners = _decode(np.take(_words(self.packed), slots))
         total = np.stack([np.einsum("cn,cn->n", weights, c.reshape(weights.shape)) for c in corners], axis=1)
         length = np.sqrt(np.einsum("nk,nk->n", total, total))[:, None]
         with np.errstate(invalid="ignore", divide="ignore"):

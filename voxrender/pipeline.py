@@ -218,8 +218,9 @@ def _encode_labels(volume, read, prepare, meta, progress):
 
 
 def grey_normals(volume, mask, info, prepare):
-    """The surface normals of ``mask`` from the volume's grey values (trilinear samples of the cropped input at the
-    mask's grid points); from the mask itself when the volume holds only two values (a binary input)."""
+    """The surface normals of ``mask`` from the volume's grey values: the cropped input's own voxels when the mask
+    lies on its grid, cubic samples of it at the mask's grid points when it was resampled; from the mask itself
+    when the volume holds only two values (a binary input)."""
     from .normals import surface_normals
 
     values = prep.crop(volume.values, prepare.crop)

@@ -253,8 +253,8 @@ def save(segments, path, sections=None):
         arrays["labels"] = np.asarray(segments.labels, "<u2")
     meta = dict(segments.meta)
     if segments.normals is not None:
-        index = "<i4" if np.prod(segments.shape, dtype=np.int64) < 2 ** 30 else "<i8"   # half the bytes to search
-        arrays.update(normal_index=np.asarray(segments.normals.index, index),
+        index = np.asarray(segments.normals.index)          # int32 when the volume allows (surface_normals)
+        arrays.update(normal_index=np.asarray(index, f"<i{index.dtype.itemsize}"),
                       normal_packed=np.asarray(segments.normals.packed, "<i2").ravel())
         meta["normals_from"] = segments.normals.source
     layout, position = {}, 0
