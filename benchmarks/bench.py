@@ -465,17 +465,18 @@ def markdown(results):
                                                                      else "") + "):", "",
                   "| shading | load | render | shade | write | picture |" + (" vtk | picture/vtk |" if vtk else ""),
                   "|---|---|---|---|---|---|" + ("---|---|" if vtk else "")]
+
+        def stage_row(name, seconds):            # seconds: load, render, shade, write
+            whole = sum(seconds)
+            return f"| {name} | " + " | ".join(f"{s:.3f}" for s in seconds) + f" | {whole:.3f} |" + \
+                (f" {vtk:.3f} | {whole / vtk:.2f} |" if vtk else "")
+
         for name in ("gradient", "gradient + ao", "depth-gradient"):
-            whole = stages.get("load_s", 0.0) + stages[name]["render"] + stages[name]["shade"] + stages["write_s"]
-            lines.append(f"| {name} | {stages.get('load_s', 0.0):.3f} | {stages[name]['render']:.3f} | "
-                         f"{stages[name]['shade']:.3f} | {stages['write_s']:.3f} | {whole:.3f} |" +
-                         (f" {vtk:.3f} | {whole / vtk:.2f} |" if vtk else ""))
+            lines.append(stage_row(name, (stages.get("load_s", 0.0), stages[name]["render"], stages[name]["shade"],
+                                          stages["write_s"])))
         fresh = stages.get("fresh")
         if fresh:
-            whole = fresh["load"] + fresh["render"] + fresh["shade"] + fresh["write"]
-            lines.append(f"| gradient, fresh process | {fresh['load']:.3f} | {fresh['render']:.3f} | "
-                         f"{fresh['shade']:.3f} | {fresh['write']:.3f} | {whole:.3f} |" +
-                         (f" {vtk:.3f} | {whole / vtk:.2f} |" if vtk else ""))
+            lines.append(stage_row("gradient, fresh process", [fresh[k] for k in ("load", "render", "shade", "write")]))
             lines += ["", f"In a fresh process (`voxrender render object.vxs`, medians of the stages it reports): "
                       f"shade + write {fresh['shade_and_write'] * 1000:.0f} ms; the command's wall time "
                       f"{fresh['wall']:.2f} s, start-up included."]
