@@ -145,7 +145,29 @@ def load_segments(path, read=None, prepare=None, progress=None):
                        from_sections(arrays, encoded.shape))
     volume = read.read(path, progress)
     loaded = time.perf_counter()
-    meta = {"source": str(path), "input_shape": list(volume.shape), "input_spacing": list(volume.spacing)}
+    encoded = encode_volume(volume, prepare, read, progress, source=path)
+    return Encoded(encoded, {"load": loaded - started, "prepare": time.perf_counter() - loaded})
+
+
+def encode_volume(volume, prepare=None, read=None, progress=None, source=None):
+    """The object in a :class:`~voxrender.io.Volume` already read (or made from an array), as
+    :class:`~voxrender.segments.Segments` with their surface normals: :func:`load_segments` without the reading.
+
+    ``read`` says how to read a label map paired with the volume by its path (``prepare.labels.source``, which
+    may also be a ``Volume`` on the same grid); ``source`` names where the volume came from (default: its
+    ``meta["source"]``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from voxrender.io import Volume
+    >>> encode_volume(Volume(np.pad(np.full((2, 2, 2), 100, np.int16), 1)), PrepOptions(threshold=50)).voxel_count
+    8
+    """
+    read = read or ReadOptions()
+    prepare = prepare or PrepOptions()
+    meta = {"source": str(source or volume.meta.get("source", "an array")), "input_shape": list(volume.shape),
+            "input_spacing": list(volume.spacing)}
     meta.update({k: v for k, v in volume.meta.items()
                  if k in ("format", "modality", "units", "series", "orientation", "orientation_from", "reoriented")})
     if prepare.tissues:
@@ -167,7 +189,7 @@ def load_segments(path, read=None, prepare=None, progress=None):
     else:
         encoded = _encode_labels(volume, read, prepare, meta, progress)
     encoded.meta["normals_from"] = encoded.normals.source
-    return Encoded(encoded, {"load": loaded - started, "prepare": time.perf_counter() - loaded})
+    return encoded
 
 
 def _encode_labels(volume, read, prepare, meta, progress):
@@ -177,19 +199,24 @@ def _encode_labels(volume, read, prepare, meta, progress):
 
     selection = prepare.labels
     label_volume = volume
-    if selection.source is not None:
+    if isinstance(selection.source, io.Volume):           # an array given to the library, on the image's grid
+        label_volume = selection.source
+        label_name = label_volume.meta.get("source", "the label array")
+    elif selection.source is not None:
+        label_name = selection.source
         try:
             label_volume = replace(read, format="auto", frame=None).read(selection.source)
         except InputError as exc:
             raise InputError(f"the label map: {exc.message}", parameter="labels_from") from None
-        if label_volume.shape != volume.shape:
-            raise InputError(f"the label map {selection.source} has shape {label_volume.shape[::-1]} (x, y, z) but "
-                             f"the image has {volume.shape[::-1]}; give the label map made from this image",
-                             parameter="labels_from")
-        meta["label_source"] = str(selection.source)
     elif prepare.threshold is not None:
         raise InputError("a label map is selected by its labels: drop --threshold, or pair the label map with its "
                          "image by --labels-from", parameter="threshold")
+    if selection.source is not None:
+        if label_volume.shape != volume.shape:
+            raise InputError(f"the label map {label_name} has shape {label_volume.shape[::-1]} (x, y, z) but "
+                             f"the image has {volume.shape[::-1]}; give the label map made from this image",
+                             parameter="labels_from")
+        meta["label_source"] = str(label_name)
     # the label map lies on the image's grid: resample both with the image's spacing
     labels, info = prep.label_map(replace(label_volume, spacing=volume.spacing), selection, crop=prepare.crop,
                                   voxel=prepare.voxel, resample=prepare.resample)
