@@ -17,7 +17,7 @@ GOLDEN = Path(__file__).resolve().parent / "golden"
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 SHELL = ["render", "{samples}/shell", "--threshold", "500", "--alpha", "100", "--beta", "20", "--size", "96"]
 CASES = {
-    "demo": ["demo", "--headsq", str(Path(__file__).resolve().parents[1] / "samples" / "headsq"), "--size", "96"],
+    "demo": ["demo", "--size", "96"],  # the quarter head shipped with voxrender
     **{f"shell-{method}": SHELL + ["--method", method] for method in sorted(METHODS)},
     "shell-gamma": SHELL + ["--gamma", "30"],
     "shell-cutaway": SHELL + ["--cut-depth", "0", "--light", "1,-1,-2"],

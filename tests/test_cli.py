@@ -136,7 +136,7 @@ def test_vpn_and_view_options(tmp_path, cube_folder):
 
 
 def test_demo_renders_the_quarter_head(tmp_path):
-    result = run("demo", "-o", tmp_path / "demo.png", "--headsq", ROOT / "samples" / "headsq", "--size", 64)
+    result = run("demo", "-o", tmp_path / "demo.png", "--size", 64)  # the quarter head shipped with voxrender
     assert result.exit_code == 0, result.output
     assert iio.imread(tmp_path / "demo.png").shape[:2] == (2 * (64 + 16 + 4) + 4, 4 * (64 + 4) + 4)  # 2 x 4 sheet
     assert_bad_input(run("demo", "-o", tmp_path / "d.png", "--headsq", tmp_path), "--headsq", "quarter head")

@@ -605,7 +605,7 @@ def samples_command(folder, names):
         click.echo(f"{path}: {len(values)} slices, and {name}.nii.gz, {name}.nrrd beside it")
 
 
-# The demo: the VTK quarter head shipped in samples/headsq (its README and licence are beside it).
+# The demo: the VTK quarter head shipped as package data in voxrender/data/headsq (its README and licence beside it).
 DEMO_READ = ReadOptions(raw=io.RawLayout(64, 64, np.dtype("<u2")), spacing=(3.2, 3.2, 1.5), orientation="LPI")
 DEMO_TISSUES = (("skin", 500), ("bone", 1150))
 DEMO_VIEWS = (("anterior", PRESETS["anterior"]), ("left", PRESETS["left"]), ("posterior", PRESETS["posterior"]),
@@ -615,15 +615,14 @@ DEMO_VIEWS = (("anterior", PRESETS["anterior"]), ("left", PRESETS["left"]), ("po
 @main.command("demo")
 @click.option("-o", "--output", "output_path", default="demo.png", show_default=True,
               type=click.Path(path_type=Path))
-@click.option("--headsq", default="samples/headsq", show_default=True, type=click.Path(path_type=Path),
-              help="The quarter-resolution head's slices (shipped in the repository's samples/).")
+@click.option("--headsq", default=samples.headsq_path, show_default="the quarter head shipped with voxrender",
+              type=click.Path(path_type=Path), help="A folder of the quarter-resolution head's slices.")
 @click.option("--size", default=192, show_default=True, type=click.IntRange(32, 2048), help="Pixels per picture.")
 def demo_command(output_path, headsq, size):
     """Render a sheet of a real CT, skin and bone from four views, to OUTPUT."""
     output.check_writable(output_path)
     if not (headsq / "quarter.1").is_file():
-        raise InputError(f"{headsq} does not hold the quarter head (quarter.1 ... quarter.93); run the demo from the "
-                         "repository's root or give --headsq", parameter="headsq")
+        raise InputError(f"{headsq} does not hold the quarter head (quarter.1 ... quarter.93)", parameter="headsq")
     options = RenderOptions(size=(size, size))
     started = time.perf_counter()
     rows, captions = [], []

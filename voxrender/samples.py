@@ -5,14 +5,20 @@ values": about 0 for air and about 1000 for the object, so a threshold of 500
 separates them.  The functions return arrays; ``voxrender samples`` writes each as a
 folder of 16-bit PNG slices (:func:`voxrender.output.write_slices`), the format a user's
 own image folder would have.
+
+Beside them the package ships one real CT, VTK's quarter-resolution head (:func:`headsq_path`), which
+``voxrender demo`` renders.
 """
 
 from __future__ import annotations
 
+from importlib import resources
+from pathlib import Path
+
 import numpy as np
 
 __all__ = ["SAMPLES", "SAMPLE_THRESHOLD", "sphere", "torus", "shell", "staircase", "cylinder", "STAIRCASE_VOXELS",
-           "TISSUES", "tissue_labels", "segment_fields"]
+           "TISSUES", "tissue_labels", "segment_fields", "headsq_path"]
 
 AIR, OBJECT = 40, 1040
 SAMPLE_THRESHOLD = 500
@@ -117,6 +123,23 @@ def cylinder(n=64, radius=None, axis=(0.25, 0.15, 0.8)):
     inside = np.zeros((n, n, n), bool)
     inside[swept[:, 2], swept[:, 1], swept[:, 0]] = True
     return _ct(inside)
+
+
+def headsq_path():
+    """The folder of VTK's quarter-resolution head, shipped with voxrender as package data.
+
+    93 headerless slices ``quarter.1`` ... ``quarter.93`` of 64 x 64 little-endian uint16 values, voxels of
+    3.2 x 3.2 x 1.5 mm, orientation ``LPI``; its ``README.md`` and VTK's licence lie beside them.
+
+    Returns
+    -------
+    pathlib.Path
+        The folder inside the installed package (inside the checkout for an editable install).
+
+    >>> (headsq_path() / "quarter.93").is_file()
+    True
+    """
+    return Path(resources.files("voxrender").joinpath("data", "headsq"))
 
 
 SAMPLES = {"sphere": sphere, "torus": torus, "shell": shell, "staircase": staircase, "cylinder": cylinder}
