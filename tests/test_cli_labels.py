@@ -149,7 +149,7 @@ def test_bad_label_inputs_end_in_one_line(tmp_path, label_file, ct_file):
         (["render", ct_file, "--labels-from", small], ["--labels-from", "shape"]),
         (["render", ct_file, "--preset", "liver"], ["--preset", "unknown preset", "bone"]),
         (["render", ct_file, "--preset", "bone", "--threshold", "300"], ["--preset", "not both"]),
-        (["render", label_file, "--labels", "--threshold", "2"], ["--threshold", "--labels-from"]),
+        (["render", label_file, "--labels", "--threshold", "2"], ["--threshold", "selected by its labels"]),
         (["render", ct_file, "--threshold", "500", "--label-png", tmp_path / "l.png"], ["--label-png", "single"]),
         (["render", label_file, "--label", "two"], ["--label", "separated by commas"]),
         (["render", label_file, "--labels", "--colour", "#12"], ["--colour", "not a colour"]),

@@ -209,8 +209,8 @@ def _encode_labels(volume, read, prepare, meta, progress):
         except InputError as exc:
             raise InputError(f"the label map: {exc.message}", parameter="labels_from") from None
     elif prepare.threshold is not None:
-        raise InputError("a label map is selected by its labels: drop --threshold, or pair the label map with its "
-                         "image by --labels-from", parameter="threshold")
+        raise InputError("a label map is selected by its labels, not by a threshold: drop it, or give the label map "
+                         "as the labels of the image it was made from", parameter="threshold")
     if selection.source is not None:
         if label_volume.shape != volume.shape:
             raise InputError(f"the label map {label_name} has shape {label_volume.shape[::-1]} (x, y, z) but "

@@ -346,7 +346,7 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
         spacing = (voxel, voxel, voxel)
     labels = np.where(np.isin(values, chosen), values, 0).astype(np.uint16)
     if not labels.any():
-        raise InputError("the chosen labels vanish at this voxel size; choose a smaller --voxel", parameter="voxel")
+        raise InputError("the chosen labels vanish at this voxel size; choose a smaller one", parameter="voxel")
     return labels, {"labels": [int(v) for v in chosen], "voxel": voxel, "spacing": spacing}
 
 
@@ -357,10 +357,11 @@ def check_labels(values):
         fractional = values[~(values == np.round(values))]           # NaN and inf too
         if fractional.size:
             raise InputError(f"this is not a label map: it holds non-integer values such as {fractional.flat[0]:g}; "
-                             "give a label map (whole numbers), or --threshold for grey values", parameter="label")
+                             "give a label map (whole numbers), or select grey values by a threshold",
+                             parameter="label")
     elif values.dtype.kind not in "uib":
         raise InputError(f"a label map must hold whole numbers, not {values.dtype}", parameter="label")
     if values.size and (np.min(values) < 0 or np.max(values) > 65535):
         raise InputError(f"labels must lie in 0..65535, but the values run from {np.min(values):g} to "
-                         f"{np.max(values):g}: if this is an image, not a label map, select by --threshold, or pair "
-                         "it with its label map by --labels-from", parameter="label")
+                         f"{np.max(values):g}: if this is an image, not a label map, select by a threshold, or pair "
+                         "it with its label map", parameter="label")
