@@ -5,7 +5,8 @@ from reference import exact
 from test_contract import check
 from voxrender import segments
 from voxrender.render import render
-from voxrender.render.btf import render_btf, render_btf_literal
+from voxrender.render.btf import render_btf
+from voxrender.render.literal.btf import render_btf_literal
 from voxrender.view import View
 
 VIEWS = [(0, 0, 0, 1.0), (30, 20, 0, 1.3), (-45, 15, 10, 2.0), (60, 120, 0, 0.5), (90, 0, 0, 3.0),

@@ -4,10 +4,10 @@ import pytest
 from reference import exact
 from voxrender import octree, segments
 from voxrender.render.clip import Clip
+from voxrender.render.literal.octree_ftb import B as BLOCKED
+from voxrender.render.literal.octree_ftb import render_octree_ftb_literal
 from voxrender.render.octree_btf import render_octree_btf, visible_axes
 from voxrender.render.octree_ftb import render_octree_ftb, seen_from_the_front
-from voxrender.render.octree_ftb_literal import B as BLOCKED
-from voxrender.render.octree_ftb_literal import render_octree_ftb_literal
 from voxrender.view import View, angles_from_vpn, vpn_from_angles
 
 PAPER_VPNS = [(1, -2, 1), (-1, -2, 1), (1, -1, 0), (0, -1, 0)]  # Zhao and Davis's Tables II and III

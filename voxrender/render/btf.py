@@ -10,9 +10,9 @@ of the view contract.
 :func:`render_btf` paints one slice at a time with array operations: the slice's
 voxels are put in back-to-front order and, at every pixel, the last of them to
 cover it wins, as if painted one by one; the slice is then painted over the
-image.  :func:`render_btf_literal` paints voxel by voxel with the geometry of
-:mod:`.oracle`, as the paper does; it is the test oracle.  Both are painters:
-the order decides, and nothing compares depths.
+image.  :func:`~voxrender.render.literal.btf.render_btf_literal` paints voxel by
+voxel, as the paper does; it is the test oracle.  Both are painters: the order
+decides, and nothing compares depths.
 
 Ties: in back-to-front order a later voxel is never farther along a ray than an earlier one,
 except on a ray that only touches two closed cubes on a shared face or edge (pixel centres
@@ -26,10 +26,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..segments import expand_runs
-from . import oracle
 from .geometry import paint_boxes
 
-__all__ = ["render_btf", "render_btf_literal", "back_to_front", "slice_runs"]
+__all__ = ["render_btf", "back_to_front", "slice_runs"]
 
 
 def back_to_front(n, direction):
@@ -100,39 +99,3 @@ def render_btf(segments, view, progress=None, clip=None):
         stats["voxels_projected"] += len(x)
         stats["pixel_writes"] += len(pixels)
     return image.reshape(height, width).astype(np.float32), stats
-
-
-def render_btf_literal(segments, view, clip=None):
-    """Back-to-front rendering one voxel at a time, as the paper describes it (the test oracle).
-
-    Slices, rows within a slice and voxels within a row are visited from the farthest to the nearest;
-    each voxel overwrites the pixels its cube covers (:func:`.oracle.box_pixels`).
-    """
-    r = oracle.rotation(view.alpha, view.beta, view.gamma)
-    size = tuple(view.size)
-    nz, ny, nx = segments.shape
-    centre = ((nx - 1) / 2, (ny - 1) / 2, (nz - 1) / 2)
-    image = np.full(size, np.inf)
-    stats = {"slices": 0, "rows": 0, "voxels_projected": 0, "pixel_writes": 0}
-
-    def farthest_first(n, component):          # the viewer looks along +Z': high indices are far when it grows
-        return list(range(n - 1, -1, -1)) if component > 0 else list(range(n))
-
-    for z in farthest_first(nz, r[2][2]):
-        slice_has_voxels = False
-        for y in farthest_first(ny, r[2][1]):
-            runs = [kept for start, end in zip(*segments.row(z, y))
-                    if (kept := oracle.clip_run(clip, r, z, y, start, end, centre))]
-            if not runs:
-                continue
-            slice_has_voxels = True
-            stats["rows"] += 1
-            voxels = [x for start, end in runs for x in range(int(start), int(end) + 1)]
-            for x in (voxels[::-1] if r[2][0] > 0 else voxels):
-                stats["voxels_projected"] += 1
-                for row, column, depth in oracle.box_pixels(r, (x, y, z), (0.5, 0.5, 0.5), centre, size,
-                                                            view.scale, tuple(view.centre)):
-                    image[row, column] = depth                # painted over what is behind
-                    stats["pixel_writes"] += 1
-        stats["slices"] += slice_has_voxels
-    return image.astype(np.float32), stats

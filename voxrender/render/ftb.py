@@ -16,8 +16,8 @@ Here the parallelepiped's span on each scanline is computed in closed form
 DDA, and each lit pixel takes the depth where its ray enters the segment's box,
 so the depth image is the view contract's.
 
-Two implementations share the geometry below: :mod:`.ftb_literal` walks the
-linked lists case by case (the oracle), and :func:`render_ftb` runs the same
+Two implementations: :mod:`.literal.ftb` walks the linked lists case by case
+with a geometry of its own (the oracle), and :func:`render_ftb` runs the same
 merges for many scanlines at once: every merge of one row into one scanline is
 independent of the other scanlines (the paper's section 7), so the merges of a
 slice are batched by their rank on their scanline, and each batch is one set of

@@ -9,10 +9,10 @@ whatever is painted later, i.e. nearer.
 A face is scan-converted exactly: every pixel whose ray meets the closed square gets the
 depth where the ray meets it.  :func:`render_octree_btf` paints the faces of all black
 octants of one size at once and keeps the nearest depth per pixel (the result of painting
-back to front); :func:`.octree_btf_literal.render_octree_btf_literal` recurses and paints
-face by face.  Statistics follow Zhao and Davis's Tables II and III: octants visited by colour,
+back to front); :func:`.literal.octree_btf.render_octree_btf_literal` recurses and paints
+face by face (the oracle).  Statistics follow Zhao and Davis's Tables II and III: octants visited by colour,
 black faces scan-converted, scanlines and pixels accumulated; the vectorised version also
-times its work on black octants (``black_seconds``).  The oracle is :mod:`.octree_btf_literal`.
+times its work on black octants (``black_seconds``).
 """
 
 from __future__ import annotations

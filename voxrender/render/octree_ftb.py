@@ -1,6 +1,6 @@
 """Zhao and Davis's front-to-back octree display with blocking quadtrees, vectorised.
 
-The literal version (:mod:`.octree_ftb_literal`) keeps the blocking bitmaps and recurses
+The literal version (:mod:`.literal.octree_ftb`) keeps the blocking bitmaps and recurses
 octant by octant.  Its decisions can be computed without the recursion, from what the
 bitmaps *mean* (derived from the procedures of Sec. 4; the tests prove it by comparing every
 statistic with the literal version):
@@ -23,7 +23,7 @@ statistic with the literal version):
    hand on their eight children; unblocked black leaves scan-convert their open faces.
 5. Painting "un-painted pixels only" in the FTB order is done as: every open face's pixels, keeping
    per pixel the nearest.  In FTB order the first face to reach a pixel is the nearest, except on a
-   ray that runs along an edge two faces share (see the ties in :mod:`.octree_ftb_literal`), where
+   ray that runs along an edge two faces share (see the ties in :mod:`.literal.octree_ftb`), where
    both versions keep the nearer.
 """
 

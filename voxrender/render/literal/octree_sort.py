@@ -1,17 +1,18 @@
-"""The sorted linear octree and the z-buffer one voxel at a time: the oracles of :mod:`.octree_sort`.
+"""The sorted linear octree and the z-buffer one voxel at a time.
 
-They take nothing from the production renderers but the region octree: the codes are broken into
-voxels and recoded bit by bit as the paper writes it (:func:`recode_literal`), sorted with Python's
-sort, decoded digit by digit, and each voxel's cube is painted with :mod:`.oracle`.
+The oracles of :mod:`voxrender.render.octree_sort`.  They take nothing from the production renderers but the
+region octree: the codes are broken into voxels and recoded bit by bit as the paper writes it
+(:func:`recode_literal`), sorted with Python's sort, decoded digit by digit, and each voxel's cube is painted
+with :mod:`.geometry`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .. import octree
-from . import oracle
-from .octree_btf_literal import literal_tree
+from ... import octree
+from . import geometry
+from .octree_btf import literal_tree
 
 __all__ = ["recode_literal", "render_octree_sort_literal", "render_zbuffer_literal"]
 
@@ -63,8 +64,8 @@ def _decode(code, n):
 def _render(segments, view, clip, tree, codes_in_order, keep):
     """Paint the voxels of ``codes_in_order`` one by one; ``keep(old, new)`` decides each write."""
     tree = literal_tree(segments, view, clip, tree)
-    r = oracle.rotation(view.alpha, view.beta, view.gamma)
-    vpn = oracle.view_plane_normal(r)
+    r = geometry.rotation(view.alpha, view.beta, view.gamma)
+    vpn = geometry.view_plane_normal(r)
     codes = _voxel_codes(tree)
     nz, ny, nx = segments.shape
     centre = ((nx - 1) / 2, (ny - 1) / 2, (nz - 1) / 2)
@@ -72,8 +73,8 @@ def _render(segments, view, clip, tree, codes_in_order, keep):
     image = np.full(height * width, np.inf)
     counts = {"fragments": 0, "writes": 0}
     for code in codes_in_order(codes, tree.n, vpn):
-        for row, column, depth in oracle.box_pixels(r, _decode(code, tree.n), (0.5, 0.5, 0.5), centre,
-                                                    tuple(view.size), view.scale, tuple(view.centre)):
+        for row, column, depth in geometry.box_pixels(r, _decode(code, tree.n), (0.5, 0.5, 0.5), centre,
+                                                      tuple(view.size), view.scale, tuple(view.centre)):
             pixel = row * width + column
             counts["fragments"] += 1
             if keep(image[pixel], depth):

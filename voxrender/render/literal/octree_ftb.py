@@ -1,8 +1,8 @@
 """Zhao and Davis's front-to-back octree display with blocking quadtrees, as the paper writes it.
 
 This is the literal, recursive implementation: the oracle for the vectorised version
-(:mod:`.octree_ftb`, registered as ``octree-ftb``).  It takes nothing from the production
-renderers but the region octree: faces are scan-converted by :mod:`.oracle`.
+(:mod:`voxrender.render.octree_ftb`, registered as ``octree-ftb``).  It takes nothing from the
+production renderers but the region octree: faces are scan-converted by :mod:`.geometry`.
 
 One blocking quadtree per potentially visible axis (the seven viewing classes XYZ, XY,
 XZ, YZ, X, Y, Z are the non-zero components of the VPN), each stored as a *blocking
@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import octree
-from .octree_btf_literal import FaceScan, children_front_to_back, literal_tree, visible_faces
+from ... import octree
+from .octree_btf import FaceScan, children_front_to_back, literal_tree, visible_faces
 
 __all__ = ["render_octree_ftb_literal", "BlockingBitmap", "QUAD_TAB", "ind_tab"]
 

@@ -1,12 +1,12 @@
 """The geometry of the literal versions: the view contract written out again, one pixel at a time.
 
 The literal, paper-shaped renderers are the test oracles of the vectorised ones, so they must not
-share the code they check.  They take nothing from the production geometry (:mod:`.geometry`, the
-:class:`~voxrender.view.View`'s mappings, :mod:`.clip`): this module computes the rotation (the
-dynamic-screen paper's Eq. 2), pixel centres, the span of a box on a scanline by intersecting the
-box's projected edges with the scanline (the DDA of the paper's Figs. 8 and 9, in its exact limit),
-the ray's entry into a box by the slab test, and the clip limits, in plain Python floats.  A slip in
-either geometry then shows as a disagreement.
+share the code they check.  They take nothing from the production geometry
+(:mod:`voxrender.render.geometry`, the :class:`~voxrender.view.View`'s mappings, :mod:`voxrender.render.clip`):
+this module computes the rotation (the dynamic-screen paper's Eq. 2), pixel centres, the span of a box on a
+scanline by intersecting the box's projected edges with the scanline (the DDA of the paper's Figs. 8 and 9, in
+its exact limit), the ray's entry into a box by the slab test, and the clip limits, in plain Python floats.  A
+slip in either geometry then shows as a disagreement.
 
 Boxes are closed: a pixel whose ray touches a box within ``EPS`` (voxel units) meets it, as in the
 contract.

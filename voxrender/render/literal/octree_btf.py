@@ -1,17 +1,18 @@
-"""Meagher's back-to-front octree display as a recursion, face by face: the oracle of :mod:`.octree_btf`.
+"""Meagher's back-to-front octree display as a recursion, face by face.
 
-It takes nothing from the production renderers but the region octree itself: the view plane normal,
-the visible faces, the order of the children and the scan-conversion of each face (:mod:`.oracle`,
-every pixel whose ray meets the closed square, at the depth where it meets it) are its own.
-The helpers here are shared with the literal front-to-back traversal (:mod:`.octree_ftb_literal`).
+The oracle of :mod:`voxrender.render.octree_btf`.  It takes nothing from the production renderers but the
+region octree itself: the view plane normal, the visible faces, the order of the children and the
+scan-conversion of each face (:mod:`.geometry`, every pixel whose ray meets the closed square, at the depth
+where it meets it) are its own.  The helpers here are shared with the literal front-to-back traversal
+(:mod:`.octree_ftb`) and the literal sorted octree (:mod:`.octree_sort`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from .. import octree
-from . import oracle
+from ... import octree
+from . import geometry
 
 __all__ = ["render_octree_btf_literal", "literal_tree", "visible_faces", "children_front_to_back", "FaceScan"]
 
@@ -19,8 +20,8 @@ __all__ = ["render_octree_btf_literal", "literal_tree", "visible_faces", "childr
 def literal_tree(segments, view, clip=None, tree=None):
     """The region octree to traverse: ``tree`` or one built from the segments; with a clip, the clipped object's."""
     if clip is not None:
-        r = oracle.rotation(view.alpha, view.beta, view.gamma)
-        return octree.build(oracle.clip_mask(segments.to_mask(), clip, r))
+        r = geometry.rotation(view.alpha, view.beta, view.gamma)
+        return octree.build(geometry.clip_mask(segments.to_mask(), clip, r))
     return tree if tree is not None else octree.build(segments.to_mask())
 
 
@@ -38,17 +39,17 @@ def children_front_to_back(vpn):
 
 
 class FaceScan:
-    """Scan-converts octant faces for one view, face by face, with the oracle's geometry."""
+    """Scan-converts octant faces for one view, face by face, with the literal geometry."""
 
     def __init__(self, tree, view, shape):
         self.tree = tree
-        self.r = oracle.rotation(view.alpha, view.beta, view.gamma)
+        self.r = geometry.rotation(view.alpha, view.beta, view.gamma)
         self.size, self.scale, self.middle = tuple(view.size), view.scale, tuple(view.centre)
         nz, ny, nx = shape
         self.centre = ((nx - 1) / 2, (ny - 1) / 2, (nz - 1) / 2)
 
     def vpn(self):
-        return oracle.view_plane_normal(self.r)
+        return geometry.view_plane_normal(self.r)
 
     def face(self, node, axis, side):
         """``(pixels, scanlines)``: ``[(flat pixel, depth), ...]`` of the face and how many rows it covers."""
@@ -58,7 +59,7 @@ class FaceScan:
         box_centre[axis] += side * side_length / 2
         half = [side_length / 2] * 3
         half[axis] = 0.0
-        found = oracle.box_pixels(self.r, box_centre, half, self.centre, self.size, self.scale, self.middle)
+        found = geometry.box_pixels(self.r, box_centre, half, self.centre, self.size, self.scale, self.middle)
         width = self.size[1]
         return [(row * width + column, depth) for row, column, depth in found], len({row for row, _, _ in found})
 

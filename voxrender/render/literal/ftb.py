@@ -8,15 +8,15 @@ actions each step.  Slow on purpose: it is what :func:`~voxrender.render.ftb.ren
 is checked against, depth image and statistics alike.
 
 It shares no geometry with the vectorised version: every parallelepiped is scan-converted
-by :mod:`.oracle` (its projected edges crossed with each scanline) and every lit pixel's
-depth is the oracle's slab test, one pixel at a time.
+by :mod:`.geometry` (its projected edges crossed with each scanline) and every lit pixel's
+depth is its slab test, one pixel at a time.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from . import oracle
+from . import geometry
 
 __all__ = ["render_ftb_literal", "Unlit"]
 
@@ -102,7 +102,7 @@ def render_ftb_literal(segments, view, clip=None):
     The view's gamma is ignored (it turns the pre-image afterwards); the statistics are those of
     :func:`~voxrender.render.ftb.render_ftb`.
     """
-    r = oracle.rotation(view.alpha, view.beta)
+    r = geometry.rotation(view.alpha, view.beta)
     size, scale, middle = tuple(view.size), view.scale, tuple(view.centre)
     height, width = size
     nz, ny, nx = segments.shape
@@ -137,21 +137,21 @@ def render_ftb_literal(segments, view, clip=None):
     if all(lo <= hi for lo, hi in limits):
         box_centre = tuple((lo + hi) / 2 for lo, hi in limits)
         half = tuple((hi - lo + 1) / 2 for lo, hi in limits)
-        first, last = oracle.box_scanlines(r, box_centre, half, centre, size, scale, middle)
+        first, last = geometry.box_scanlines(r, box_centre, half, centre, size, scale, middle)
         for line in range(max(first, 0), min(last, height - 1) + 1):
-            y = oracle.pixel_centre(0, line, size, scale, middle)[1]
-            span = oracle.box_scanline_span(r, box_centre, half, centre, y, size, scale, middle)
+            y = geometry.pixel_centre(0, line, size, scale, middle)[1]
+            span = geometry.box_scanline_span(r, box_centre, half, centre, y, size, scale, middle)
             if span is not None:
                 chains[line] = Unlit(*walk(*span))
     stats["unlit_segments_start"] = stats["unlit_segments_peak"] = _count(chains)
 
     def paint(i, j, box):
         line, box_centre, half = box
-        y = oracle.pixel_centre(0, line, size, scale, middle)[1]
+        y = geometry.pixel_centre(0, line, size, scale, middle)[1]
         for walk_x in range(i, j + 1):
             column = width - 1 - walk_x if mirror else walk_x
-            x = oracle.pixel_centre(column, line, size, scale, middle)[0]
-            image[line, column] = oracle.ray_entry(r, x, y, box_centre, half, centre)
+            x = geometry.pixel_centre(column, line, size, scale, middle)[0]
+            image[line, column] = geometry.ray_entry(r, x, y, box_centre, half, centre)
             stats["pixels_lit"] += 1
 
     for outer in (z_order if outer_is_z else y_order):
@@ -161,20 +161,20 @@ def render_ftb_literal(segments, view, clip=None):
             runs = list(zip(*segments.row(z, y)))
             if not x_ascending:
                 runs = runs[::-1]
-            runs = [kept for start, end in runs if (kept := oracle.clip_run(clip, r, z, y, start, end, centre))]
+            runs = [kept for start, end in runs if (kept := geometry.clip_run(clip, r, z, y, start, end, centre))]
             if not runs:
                 continue
             slice_read = True
             stats["rows_read"] += 1
             stats["segments_read"] += len(runs)
             boxes = [(((start + end) / 2, y, z), ((end - start + 1) / 2, 0.5, 0.5)) for start, end in runs]
-            first, last = oracle.box_scanlines(r, *boxes[0], centre, size, scale, middle)   # Y' does not vary along x
+            first, last = geometry.box_scanlines(r, *boxes[0], centre, size, scale, middle)   # Y' does not vary along x
             calls = full = 0
             for line in range(max(first, 0), min(last, height - 1) + 1):
-                scan_y = oracle.pixel_centre(0, line, size, scale, middle)[1]
+                scan_y = geometry.pixel_centre(0, line, size, scale, middle)[1]
                 spans = []
                 for box_centre, half in boxes:
-                    span = oracle.box_scanline_span(r, box_centre, half, centre, scan_y, size, scale, middle)
+                    span = geometry.box_scanline_span(r, box_centre, half, centre, scan_y, size, scale, middle)
                     if span is not None:
                         spans.append((*walk(*span), (line, box_centre, half)))
                 spans.sort(key=lambda span: span[0])  # walk order; stable, so ties keep front-to-back order
