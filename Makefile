@@ -1,16 +1,17 @@
 # Every target installs what it needs into .venv first, so a fresh clone needs only `make demo` or `make test`.
+# The versions installed are those of constraints.txt, the ones CI last passed with (`make constraints` renews them).
 PYTHON ?= python3
 VENV ?= .venv
 BIN = $(VENV)/bin
 
-.PHONY: demo test benchmark samples golden mutants clean
+.PHONY: demo test lint docs wheel-check constraints benchmark samples golden mutants clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 
-$(VENV)/.installed: pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
+$(VENV)/.installed: pyproject.toml constraints.txt | $(BIN)/python
+	$(BIN)/python -m pip install --quiet --upgrade pip -c constraints.txt
+	$(BIN)/python -m pip install --quiet -e '.[test,lint,docs]' -c constraints.txt
 	touch $@
 
 demo: $(VENV)/.installed
@@ -18,6 +19,23 @@ demo: $(VENV)/.installed
 
 test: $(VENV)/.installed
 	$(BIN)/python -m pytest
+
+# ruff, configured in pyproject.toml
+lint: $(VENV)/.installed
+	$(BIN)/ruff check .
+
+# The manual into site/; a warning fails the build.
+docs: $(VENV)/.installed
+	$(BIN)/mkdocs build --strict
+
+# The wheel, installed into a fresh venv outside the checkout, renders the demo in an empty folder (a minute or two).
+wheel-check: $(VENV)/.installed
+	$(BIN)/python tests/fresh_install.py
+
+# Renew constraints.txt: the newest versions of everything `.[test,lint,docs]` needs, as a fresh venv installs them
+# today. Run `make test` (or CI) on them before committing the new file.
+constraints: | $(BIN)/python
+	$(BIN)/python tests/fresh_install.py --constraints
 
 benchmark: $(VENV)/.installed
 	$(BIN)/python -m benchmarks.bench
@@ -34,4 +52,4 @@ mutants: $(VENV)/.installed
 	$(BIN)/python tests/mutants.py
 
 clean:
-	rm -rf $(VENV) samples demo.png .pytest_cache
+	rm -rf $(VENV) samples demo.png .pytest_cache site dist build
