@@ -1,6 +1,8 @@
 """The picture step: one RenderOptions, the same picture from ``render``, ``batch`` and the library."""
 
 import json
+import subprocess
+import sys
 
 import imageio.v3 as iio
 import numpy as np
@@ -110,3 +112,50 @@ def test_normals_outputs_need_gradient_shading(tmp_path, ball_file, command):
     assert not out.exists() and not (tmp_path / "n.npy").exists()
     with pytest.raises(InputError, match="gradient shading only"):
         Outputs(tmp_path / "p.png", normals=tmp_path / "n.npy").check(RenderOptions(shading="depth-gradient"))
+
+
+# A fresh interpreter registers one more record before the rest of voxrender is imported, as if it were in
+# OUTPUTS' source; nothing else is changed.  It writes the pixels the object covers, white on black.
+TOY_OUTPUT = """
+import json, sys
+import numpy as np
+from click.testing import CliRunner
+from voxrender import output, output_kinds
+
+output_kinds.OUTPUTS["coverage_png"] = output_kinds.OutputKind(
+    ".png", "Save the pixels the object covers; in a batch, a pattern.",
+    lambda path, result, about: output.write_png(path, result.image.coverage.astype(np.uint8) * 255), "coverage-png")
+
+from voxrender.cli import main
+from voxrender.picture import Outputs, picture, write_outputs
+from voxrender.segments import encode
+from voxrender.view import View
+
+folder, commands = sys.argv[1], json.loads(sys.argv[2])
+result = picture(encode(np.ones((4, 4, 4), bool)), View(30, 20, size=(16, 16), scale=2.0))
+write_outputs(result, Outputs(f"{folder}/lib.png", coverage_png=f"{folder}/lib-covered.png"))
+runs = [CliRunner().invoke(main, command) for command in commands]
+print(json.dumps([[run.exit_code, run.stdout, run.stderr] for run in runs]))
+"""
+
+
+def test_an_output_is_one_record(tmp_path, ball_file):
+    common = [str(ball_file), "--threshold", "500", "--size", "48"]
+    commands = [["render", *common, "-o", f"{tmp_path}/r.png", "--coverage-png", f"{tmp_path}/r-covered.png",
+                 "--depth-out", f"{tmp_path}/r.npy"],
+                ["batch", *common, "--jobs", "1", "-o", f"{tmp_path}/out", "--coverage-png", "{name}-covered.png"],
+                ["batch", *common, "--jobs", "1", "-o", f"{tmp_path}/bad", "--coverage-png", "{name}.npy"],
+                ["sheet", *common, "-o", f"{tmp_path}/s.png", "--coverage-png", f"{tmp_path}/s-covered.png"],
+                ["render", "--help"]]
+    done = subprocess.run([sys.executable, "-c", TOY_OUTPUT, str(tmp_path), json.dumps(commands)],
+                          capture_output=True, text=True, check=True)
+    (render, made, bad, sheet, render_help) = json.loads(done.stdout)
+    lib = iio.imread(tmp_path / "lib-covered.png")                         # the library writes it
+    assert lib.shape == (16, 16) and set(np.unique(lib)) == {0, 255}
+    assert render[0] == 0, render                                          # the commands take its flag
+    covered = np.isfinite(np.load(tmp_path / "r.npy"))
+    assert np.array_equal(iio.imread(tmp_path / "r-covered.png"), covered.astype(np.uint8) * 255)
+    assert made[0] == 0 and (tmp_path / "out" / "ball-covered.png").is_file(), made
+    assert bad[0] == 2 and "--coverage-png: output pattern '{name}.npy' must end in .png" in bad[2], bad
+    assert sheet[0] == 2 and "--coverage-png cannot apply" in sheet[2] and not (tmp_path / "s.png").exists()
+    assert "--coverage-png FILE.png" in render_help[1] and "Save the pixels the object covers" in render_help[1]

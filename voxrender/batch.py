@@ -34,6 +34,7 @@ import numpy as np
 
 from . import __version__, output, parse, segments
 from .errors import InputError
+from .output_kinds import OUTPUTS, fields_per_output
 from .render import framing_box, method_record
 from .picture import Outputs, RenderOptions, about, picture, write_outputs
 from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
@@ -108,24 +109,20 @@ def parse_views(names=(), angles=(), turntable_count=None, axis="z"):
     return views
 
 
-@dataclass(frozen=True)
+@fields_per_output(str, picture="{name}/{view}.png")
 class Patterns:
-    """Where a batch writes each picture: a pattern per output, with ``{name}``, ``{view}``, ``{method}`` and
-    ``{index}``, relative to the batch's folder; ``None`` for an output not wanted."""
+    """Where a batch writes each picture: a pattern per output (a field per record of
+    :data:`voxrender.output_kinds.OUTPUTS`, as :class:`~voxrender.picture.Outputs` has), with ``{name}``,
+    ``{view}``, ``{method}`` and ``{index}``, relative to the batch's folder; ``None`` for an output not wanted.
 
-    picture: str = "{name}/{view}.png"
-    depth: str | None = None
-    depth_png: str | None = None
-    stats_json: str | None = None
-    normals: str | None = None
-    normals_png: str | None = None
-    labels_json: str | None = None
-    label_png: str | None = None
+    >>> Patterns(depth="{name}/{view}.npy").outputs("out", name="head", view="left").depth
+    PosixPath('out/head/left.npy')
+    """
 
     def outputs(self, out_dir, **fields):
-        return Outputs(*(None if pattern is None else Path(out_dir) / pattern.format(**fields)
-                         for pattern in (self.picture, self.depth, self.depth_png, self.stats_json, self.normals,
-                                         self.normals_png, self.labels_json, self.label_png)))
+        """The :class:`~voxrender.picture.Outputs` of one picture: each pattern filled in with ``fields``."""
+        return Outputs(**{name: None if pattern is None else Path(out_dir) / pattern.format(**fields)
+                          for name, pattern in asdict(self).items()})
 
 
 @dataclass
@@ -326,7 +323,7 @@ def render_task(item, view, index, segments_path, out_dir, encode_seconds):
         encoded = _encoded(str(segments_path), (status.st_size, status.st_mtime_ns))
         result = picture(encoded.segments, framed(item, view, encoded.segments), item.options,
                          tree=encoded.tree_for(item.method))
-        for path in outputs.paths():
+        for path in outputs.wanted().values():
             path.parent.mkdir(parents=True, exist_ok=True)
         seconds = write_outputs(result, outputs, about(encoded.segments))   # this picture's stages
         if item.per_label and result.labels is not None:
@@ -540,8 +537,6 @@ def _check_patterns(items, out_dir):
     """Every output of every picture gets a distinct path with the right ending and can be given (normals need
     gradient shading), before anything is made."""
     seen = {}
-    endings = {"picture": ".png", "depth": ".npy", "depth_png": ".png", "stats_json": ".json", "normals": ".npy",
-               "normals_png": ".png", "labels_json": ".json", "label_png": ".png"}
     for item in items:
         for index, view in enumerate(item.views):
             try:
@@ -550,11 +545,8 @@ def _check_patterns(items, out_dir):
                 raise InputError(f"an output pattern of {item.input} is not valid: use {{name}}, {{view}}, "
                                  f"{{method}}, {{index}} ({exc})", parameter="pattern") from None
             outputs.check(item.options)
-            for kind, ending in endings.items():
-                path = getattr(outputs, kind)
-                pattern = getattr(item.patterns, kind)
-                if path is None:
-                    continue
+            for kind, path in outputs.wanted().items():
+                pattern, ending = getattr(item.patterns, kind), OUTPUTS[kind].suffix
                 if path.suffix.lower() != ending:
                     raise InputError(f"output pattern {pattern!r} must end in {ending}", parameter=kind)
                 if path in seen:

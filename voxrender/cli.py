@@ -20,6 +20,7 @@ import numpy as np
 from . import __version__, batch, colours, compare, io, lines, octree, orient, output, parse, prep, samples, segments
 from .sheet import render_sheet, sheet
 from .errors import InputError
+from .output_kinds import LABELS, OUTPUTS
 from .picture import Outputs, RenderOptions, about, label_table, picture, write_outputs
 from .pipeline import Encoded, PrepOptions, ReadOptions, is_segments_file, load_segments
 from .render import DEFAULT_METHOD, METHODS, Clip
@@ -46,9 +47,9 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 # ---------------------------------------------------------------- flags and their parsers
 
-# Library parameters whose flag is not "--" + the name with dashes.
-FLAGS = {"picture": "--pattern", "depth": "--depth-out", "normals": "--normals-out", "inputs": "INPUT",
-         "compare": "--compare-rays", "views": "the manifest's views"}
+# Library parameters whose flag is not "--" + the name with dashes; the outputs' flags are in their records.
+FLAGS = {"picture": "--pattern", "inputs": "INPUT", "compare": "--compare-rays", "views": "the manifest's views",
+         **{name: f"--{kind.flag}" for name, kind in OUTPUTS.items() if kind.flag}}
 
 
 def flag(parameter):
@@ -121,6 +122,11 @@ def _render_options(options):
                          parse.vector(options["light"], "light"), tuple(c / 255 for c in colour), table,
                          options["legend"], background=parse.colour(options["background"]), ao=options["ao"],
                          orientation_marks=options["orientation_marks"])
+
+
+def _output_paths(options):
+    """``{name: path}`` of the outputs whose flags are given (the picture's own flag aside), by ``OUTPUTS``."""
+    return {name: options[name] for name in OUTPUTS if options.get(name) is not None}
 
 
 def _check_vxs_options(path, options):
@@ -236,22 +242,18 @@ def _render_options_decorator(command):
         click.option("--ao", is_flag=True, help="Darken creases and pits (screen-space ambient occlusion)."),
         click.option("--orientation-marks", is_flag=True,
                      help="Write the patient directions (L/R, A/P, S/I) at the picture's edges."),
-        click.option("--depth-out", type=click.Path(path_type=Path), metavar="FILE.npy",
-                     help="Save the depth image (float32, +inf background); in a batch, a pattern like --pattern."),
-        click.option("--depth-png", type=click.Path(path_type=Path), metavar="FILE.png",
-                     help="Save depth as a 16-bit PNG (near bright, background 0); in a batch, a pattern."),
-        click.option("--stats-json", type=click.Path(path_type=Path), metavar="FILE",
-                     help="Save timings and the renderer's statistics as JSON; in a batch, a pattern."),
-        click.option("--normals-out", type=click.Path(path_type=Path), metavar="FILE.npy",
-                     help="Save the image-space unit normals (H x W x 3, NaN background); in a batch, a pattern."),
-        click.option("--normals-png", type=click.Path(path_type=Path), metavar="FILE.png",
-                     help="Save an RGB normal map; in a batch, a pattern."),
-        click.option("--labels-out", type=click.Path(path_type=Path), metavar="FILE.json",
-                     help="Save the labels the picture shows, with names, colours and pixel counts; in a batch, a "
-                          "pattern."),
-        click.option("--label-png", type=click.Path(path_type=Path), metavar="FILE.png",
-                     help="Save the label image (16-bit, one label per pixel, 0 background); in a batch, a pattern."),
+        _output_options_decorator,
     ])
+
+
+def _output_options_decorator(command):
+    """A flag per output of ``OUTPUTS`` besides the picture (which each command names itself), its parameter the
+    output's name: a file in ``render``, a pattern in ``batch``, refused by ``sheet``.
+    """
+    return _decorate(command, [
+        click.option(f"--{kind.flag}", name, type=click.Path(path_type=Path), metavar=f"FILE{kind.suffix}",
+                     help=kind.help)
+        for name, kind in OUTPUTS.items() if kind.flag])
 
 
 # ---------------------------------------------------------------- commands
@@ -304,19 +306,19 @@ def main():
 @click.option("--gamma", type=float, help="Rotation about Z1 (the view axis) in degrees.")
 @click.option("--vpn", metavar="I,J,K", help="View plane normal (object x,y,z toward the viewer).")
 @_render_options_decorator
-def render_command(input_path, output_path, depth_out, depth_png, stats_json, normals_out, normals_png, labels_out,
-                   label_png, **options):
+def render_command(input_path, output_path, **options):
     """Render INPUT (a slice folder, volume file, label map or .vxs) to a shaded PNG."""
     _check_vxs_options(input_path, options)
     angles = _view_from(options)
     render_options = _render_options(options)
-    outputs = Outputs(output_path, depth_out, depth_png, stats_json, normals_out, normals_png, labels_out, label_png)
+    outputs = Outputs(output_path, **_output_paths(options))
     outputs.check(render_options)
-    for path in outputs.paths():
+    for path in outputs.wanted().values():
         output.check_writable(path)
     loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
     _check_label_options(loaded.segments, {"colours": options["colours"], "legend": options["legend"],
-                                           "labels_out": labels_out, "label_png": label_png})
+                                           **{name: path for name, path in outputs.wanted().items()
+                                              if OUTPUTS[name].needs is LABELS}})
     result = picture(loaded.segments, render_options.view(*angles), render_options, progress,
                      loaded.tree_for(render_options.method))
     result.seconds = {**loaded.seconds, **result.seconds}
@@ -466,9 +468,8 @@ class _BatchBar:
 @click.option("--jobs", type=click.IntRange(1, 1024), help="Worker processes (default: the machine's cores).")
 @click.option("--scheduler", metavar="ADDRESS|local", help="Run on a Dask cluster ('local' starts one here).")
 @click.option("--cache", type=click.Path(path_type=Path), help="Cache of encoded objects (default OUT/.voxrender-cache).")
-def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pattern, depth_out, depth_png,
-                  stats_json, normals_out, normals_png, labels_out, label_png, per_label, make_sheet, gif, mp4, fps,
-                  jobs, scheduler, cache, **options):
+def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pattern, per_label, make_sheet, gif,
+                  mp4, fps, jobs, scheduler, cache, **options):
     """Render many inputs from many views: pictures, summary.csv, index.html, and optionally a sheet or animation.
 
     Each input is encoded once (and cached); a failing input is reported and the others go on;
@@ -477,8 +478,7 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
     """
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"--out {out_dir} is a file; give a folder")
-    patterns = batch.Patterns(pattern, *(None if p is None else str(p) for p in (
-        depth_out, depth_png, stats_json, normals_out, normals_png, labels_out, label_png)))
+    patterns = batch.Patterns(pattern, **{name: str(path) for name, path in _output_paths(options).items()})
     items = batch.items_from(batch.expand_inputs(inputs), batch.read_manifest(manifest) if manifest else [],
                              _read_options(options), _prep_options(options), _render_options(options),
                              batch.parse_views(views, [parse.vector(a, "angles") for a in angles], turntable, axis),
@@ -507,14 +507,10 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
 @click.option("--methods", metavar="M1,M2,...", help="Rows of methods (one input): compare the algorithms.")
 @click.option("--per-label", is_flag=True, help="Rows of labels (one input with labels): all, then each alone.")
 @_render_options_decorator
-def sheet_command(inputs, output_path, views, angles, methods, per_label, depth_out, depth_png, stats_json,
-                  normals_out, normals_png, labels_out, label_png, **options):
+def sheet_command(inputs, output_path, views, angles, methods, per_label, **options):
     """Lay out pictures in a grid: one input's views x methods (--methods) or x labels (--per-label), or several
     inputs' views."""
-    given = [flag for flag, value in (("--depth-out", depth_out), ("--depth-png", depth_png),
-                                      ("--stats-json", stats_json), ("--normals-out", normals_out),
-                                      ("--normals-png", normals_png), ("--labels-out", labels_out),
-                                      ("--label-png", label_png)) if value]
+    given = [flag(name) for name in _output_paths(options)]         # a sheet writes the picture alone
     if given:
         raise InputError(f"a sheet is one picture: {', '.join(given)} cannot apply; use render or batch")
     output.check_writable(output_path)

@@ -2,9 +2,9 @@
 
 :class:`RenderOptions` holds everything that turns an encoded object and a view into a
 picture (method and its options, clip and cut, framing, shading); :func:`picture` makes it
-and :func:`write_outputs` writes it with its optional depth image and report.  ``voxrender
-render``, ``voxrender batch`` and the demo all go through these two functions, so the same
-options give the same picture from every command.
+and :func:`write_outputs` writes it to its :class:`Outputs`: the PNG and the other outputs wanted (a field per
+record of :data:`voxrender.output_kinds.OUTPUTS`).  ``voxrender render``, ``voxrender batch`` and the demo all go
+through these two functions, so the same options give the same picture from every command.
 """
 
 from __future__ import annotations
@@ -15,8 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import output, shade
+from . import shade
 from .errors import InputError
+from .output_kinds import OUTPUTS, fields_per_output
 from .shade import HEADLIGHT, SHADINGS, light_direction
 from .render import DEFAULT_METHOD, Clip, DepthImage, method_record, render
 from .view import View
@@ -93,32 +94,36 @@ class RenderOptions:
         return View(alpha, beta, gamma, tuple(self.size), self.scale)
 
 
-NORMALS_NEED_GRADIENT = "normals are kept with gradient shading only; drop the normals outputs or shade by gradient"
-
-
-@dataclass(frozen=True)
+@fields_per_output(Path)
 class Outputs:
-    """Where a picture goes: the PNG and, optionally, the depth image (``.npy`` and 16-bit PNG) and a JSON
-    report of timings and the renderer's statistics."""
+    """Where a picture goes: the PNG ``picture`` and a path for each other output wanted, a field per record of
+    :data:`voxrender.output_kinds.OUTPUTS` (``depth``, ``depth_png``, ``stats_json``, ``normals`` ...); ``None``
+    for an output not wanted.
 
-    picture: Path
-    depth: Path | None = None
-    depth_png: Path | None = None
-    stats_json: Path | None = None
-    normals: Path | None = None
-    normals_png: Path | None = None
-    labels_json: Path | None = None
-    label_png: Path | None = None
+    >>> outputs = Outputs("skull.png", depth="skull.npy")
+    >>> list(outputs.wanted()), outputs.normals
+    (['picture', 'depth'], None)
+    """
 
-    def paths(self):
-        return [p for p in (self.picture, self.depth, self.depth_png, self.stats_json, self.normals,
-                            self.normals_png, self.labels_json, self.label_png) if p is not None]
+    def wanted(self):
+        """``{name: path}`` of the outputs wanted, in the order of ``OUTPUTS``."""
+        return {name: getattr(self, name) for name in OUTPUTS if getattr(self, name) is not None}
 
-    def check(self, options):
-        """Refuse, before anything is rendered, an output that ``options`` cannot give: the normals are kept
-        with gradient shading only."""
-        if (self.normals is not None or self.normals_png is not None) and options.shading != "gradient":
-            raise InputError(NORMALS_NEED_GRADIENT, parameter="shading")
+    def check(self, options=None, result=None):
+        """Refuse an output the picture cannot have (see :class:`~voxrender.output_kinds.Need`): before anything
+        is rendered, when the render ``options`` tell (normals need gradient shading); before the ``result``
+        (a :class:`Picture`) is written, when it lacks what the output writes (labels need a multi-label object).
+        """
+        for name in self.wanted():
+            need = OUTPUTS[name].needs
+            if need is None:
+                continue
+            if result is not None:
+                has = getattr(result, need.field) is not None
+            else:
+                has = need.given is None or need.given(options)
+            if not has:
+                raise InputError(need.lacking, parameter=need.parameter or name)
 
 
 @dataclass
@@ -231,38 +236,20 @@ def write_outputs(result, outputs, about=None):
     """Write ``result`` to ``outputs``, and add ``write`` and ``total`` to ``result.seconds``.
 
     ``result.seconds`` may already hold earlier stages (``load``, ``prepare``); ``total`` is the sum of
-    all stages.  ``about`` adds fields to the JSON report (e.g. the object's size).
+    all stages.  ``about`` adds fields to the JSON report (e.g. the object's size).  An output the picture cannot
+    have (see :meth:`Outputs.check`) is refused before anything is written.
     """
-    if (outputs.normals is not None or outputs.normals_png is not None) and result.normals is None:
-        raise InputError(NORMALS_NEED_GRADIENT, parameter="shading")
-    if result.labels is None:
-        for path, parameter in ((outputs.labels_json, "labels_out"), (outputs.label_png, "label_png")):
-            if path is not None:
-                raise InputError("the object has no labels to write; render a label map with --labels",
-                                 parameter=parameter)
+    outputs.check(result=result)
+    wanted = outputs.wanted()
     started = time.perf_counter()
-    output.write_png(outputs.picture, result.rgb)
-    if outputs.depth is not None:
-        output.write_npy(outputs.depth, result.image.depth)
-    if outputs.depth_png is not None:
-        output.write_png(outputs.depth_png, shade.depth_to_uint16(result.image.depth))
-    if outputs.normals is not None:
-        output.write_npy(outputs.normals, result.normals)
-    if outputs.normals_png is not None:
-        output.write_png(outputs.normals_png, shade.normals_to_rgb(result.normals))
-    if outputs.label_png is not None:
-        output.write_png(outputs.label_png, result.labels)
-    if outputs.labels_json is not None:
-        output.write_json(outputs.labels_json, {"labels": result.visible_labels()})
+    for name, path in wanted.items():
+        if not OUTPUTS[name].report:
+            OUTPUTS[name].write(path, result, about)
     result.seconds["write"] = time.perf_counter() - started
     result.seconds["total"] = sum(v for k, v in result.seconds.items() if k != "total")
-    if outputs.stats_json is not None:
-        image = result.image
-        output.write_json(outputs.stats_json, {
-            "method": image.method, "seconds": result.seconds, "stats": image.stats,
-            "view": {"alpha": image.view.alpha, "beta": image.view.beta, "gamma": image.view.gamma,
-                     "scale": image.view.scale, "size": list(image.view.size)},
-            "covered_pixels": int(image.coverage.sum()), **(about or {})})
+    for name, path in wanted.items():
+        if OUTPUTS[name].report:              # the report holds the stages, the write stage too
+            OUTPUTS[name].write(path, result, about)
     return result.seconds
 
 
