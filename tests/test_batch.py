@@ -90,6 +90,7 @@ def test_batch_renders_reports_failures_and_resumes(tmp_path, stacks):
     (out / "ball" / "anterior.png").write_bytes((out / "ball" / "anterior.png").read_bytes()[:50])
     again = batch.run_batch(work, out, jobs=1)
     assert [r["status"] for r in again] == ["ok", "done earlier", "failed", "failed", "ok", "done earlier"]
+    assert {tuple(r)[:10] for r in again} == {tuple(batch.SUMMARY_COLUMNS[:10])}   # one row, whatever its status
     assert iio.imread(out / "ball" / "anterior.png").shape == (40, 48)
 
 

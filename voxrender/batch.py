@@ -313,11 +313,18 @@ def _encoded(path, stamp):
     return load_segments(path)
 
 
+def summary_row(item, view, picture_path, status, error="", **numbers):
+    """The summary row of one picture (see ``SUMMARY_COLUMNS``): which input, view and method, where it went, its
+    ``status`` (``"ok"``, ``"done earlier"`` or ``"failed"``) and ``error``, and, once made, its ``numbers``.
+    """
+    return {"input": item.input, "name": item.name, "view": view.label, "alpha": view.alpha, "beta": view.beta,
+            "gamma": view.gamma, "method": item.method, "output": str(picture_path), "status": status,
+            "error": error, **numbers}
+
+
 def render_task(item, view, index, segments_path, out_dir, encode_seconds):
     """Phase 2: render one view of one input and write its outputs; returns its summary row."""
     outputs = item.outputs(out_dir, view, index)
-    row = {"input": item.input, "name": item.name, "view": view.label, "alpha": view.alpha, "beta": view.beta,
-           "gamma": view.gamma, "method": item.method, "output": str(outputs.picture)}
     try:
         status = Path(segments_path).stat()
         encoded = _encoded(str(segments_path), (status.st_size, status.st_mtime_ns))
@@ -328,15 +335,14 @@ def render_task(item, view, index, segments_path, out_dir, encode_seconds):
         seconds = write_outputs(result, outputs, about(encoded.segments))   # this picture's stages
         if item.per_label and result.labels is not None:
             _write_label_pictures(item, result, encoded.segments, outputs.picture)
-        row.update(status="ok", error="", stats=json.dumps(result.image.stats, default=float),
-                   labels=len(result.image.stats.get("label_pixels", {})) if result.labels is not None else "",
-                   load_s=encode_seconds.get("load", 0.0), prepare_s=encode_seconds.get("prepare", 0.0),  # the input's
-                   **{f"{stage}_s": value for stage, value in seconds.items()})
     except InputError as exc:
-        row.update(status="failed", error=str(exc))
+        return summary_row(item, view, outputs.picture, "failed", str(exc))
     except Exception as exc:  # reported in the summary; the batch goes on
-        row.update(status="failed", error=f"internal error: {type(exc).__name__}: {exc}")
-    return row
+        return summary_row(item, view, outputs.picture, "failed", f"internal error: {type(exc).__name__}: {exc}")
+    return summary_row(item, view, outputs.picture, "ok", stats=json.dumps(result.image.stats, default=float),
+                       labels=len(result.image.stats.get("label_pixels", {})) if result.labels is not None else "",
+                       load_s=encode_seconds.get("load", 0.0), prepare_s=encode_seconds.get("prepare", 0.0),
+                       **{f"{stage}_s": value for stage, value in seconds.items()})   # load and prepare: the input's
 
 
 def _write_label_pictures(item, result, segments, picture_path):
@@ -484,10 +490,7 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
         for index, view in enumerate(item.views):
             output = item.output(out_dir, view, index)
             if is_done(output, item.options.size):
-                rows[(item.name, view.label)] = {
-                    "input": item.input, "name": item.name, "view": view.label, "alpha": view.alpha,
-                    "beta": view.beta, "gamma": view.gamma, "method": item.method, "output": str(output),
-                    "status": "done earlier", "error": ""}
+                rows[(item.name, view.label)] = summary_row(item, view, output, "done earlier")
             else:
                 todo.setdefault(id(item), (item, []))[1].append((index, view))
     bar = progress(len(todo) + sum(len(v) for _, v in todo.values())) if progress else None
@@ -502,11 +505,8 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
                 bar.update(1)
             if "error" in report:
                 for index, view in views:
-                    rows[(item.name, view.label)] = {
-                        "input": item.input, "name": item.name, "view": view.label, "alpha": view.alpha,
-                        "beta": view.beta, "gamma": view.gamma, "method": item.method,
-                        "output": str(item.output(out_dir, view, index)), "status": "failed",
-                        "error": report["error"]}
+                    rows[(item.name, view.label)] = summary_row(item, view, item.output(out_dir, view, index),
+                                                                "failed", report["error"])
                 if bar:
                     bar.update(len(views))
                 continue
