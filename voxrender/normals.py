@@ -376,7 +376,3 @@ def cut_normals(view, points, shape, segments=None, clip=None):
     out[chosen[across]] = face @ view.matrix.T
     out[chosen[by_plane]] = (0.0, 0.0, -1.0)
     return out
-    rows, columns, points = view.hit_points(depth, shape, beyond=1e-4)
-    found = normals.at(points) @ view.matrix.T                       # object -> image space
-    out[rows, columns] = found
-    return out
