@@ -10,8 +10,16 @@ exception is a bug in voxrender (exit status 1).
 class InputError(ValueError):
     """Bad input: a message that says what is wrong and how to fix it.
 
-    ``parameter`` names the library parameter at fault (``"scale"``, ``"threshold"`` ...), when one is.
+    Parameters
+    ----------
+    message : str
+        What is wrong and how to fix it.
+    parameter : str, optional
+        The library parameter at fault (``"scale"``, ``"threshold"`` ...), when one is; the command line shows
+        it as its flag.
 
+    Examples
+    --------
     >>> str(InputError("must be positive, not -1", parameter="scale"))
     'scale: must be positive, not -1'
     """

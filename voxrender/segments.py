@@ -34,7 +34,27 @@ _ALIGN = 64
 
 @dataclass
 class Segments:
-    """A binary object as run-length segments (see the module docstring).
+    """A binary object as run-length segments: every row ``(z, y)`` of its mask as sorted runs along x.
+
+    Parameters
+    ----------
+    shape : (nz, ny, nx)
+        The mask's grid.
+    starts, ends : ndarray of int32
+        The first and last (inclusive) x of every run, row after row.
+    offsets : ndarray
+        ``nz * ny + 1`` indices into ``starts`` and ``ends``: the runs of row ``r = z * ny + y`` are
+        ``starts[offsets[r]:offsets[r + 1]]``, and ``offsets[z * ny]`` is where slice ``z`` begins (the per-slice
+        and per-row index of the dynamic-screen paper's Fig. 7).
+    spacing : (x, y, z)
+        Voxel spacing in mm.
+    meta : dict
+        Where the object came from (threshold, source, orientation ...); a multi-label object's names and
+        colours in ``meta["label_table"]``.
+    normals : SurfaceNormals, optional
+        The grey-level normals of the surface band (:mod:`voxrender.normals`), kept in the ``.vxs``.
+    labels : ndarray of uint16, optional
+        One label per run, for a multi-label object (:func:`encode_labels`); ``None`` for a single object.
 
     Examples
     --------

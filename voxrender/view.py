@@ -154,9 +154,21 @@ def fit_scale(shape, size, box=None):
 class View:
     """A view of the contract: angles in degrees, ``size = (H, W)`` pixels, ``scale`` pixels per voxel.
 
-    ``scale=None`` means: fitted when rendered (see :meth:`fitted`).  ``centre`` is the image-space point
-    ``(X', Y')`` at the middle of the picture: the contract's ``(0, 0)`` (the volume centre) unless the
-    default framing centres the object as this view sees it.
+    Image space is ``p' = Rz(gamma) Ry(beta) Rx(alpha) (p - c)``, ``c`` the volume centre; the viewer looks along
+    ``+Z'``, with ``X'`` to the right and ``Y'`` down.
+
+    Parameters
+    ----------
+    alpha, beta, gamma : float
+        The rotation angles in degrees (the dynamic-screen paper's Eq. 2); :data:`PRESETS` names the patient
+        views.
+    size : (H, W)
+        Picture size in pixels.
+    scale : float, optional
+        Pixels per voxel; ``None``: fitted when rendered (see :meth:`fitted`).
+    centre : (X', Y')
+        The image-space point at the middle of the picture: the contract's ``(0, 0)`` (the volume centre) unless
+        the default framing centres the object as this view sees it.
 
     Examples
     --------
