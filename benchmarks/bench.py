@@ -42,7 +42,7 @@ import numpy as np
 
 from voxrender import io, prep, segments
 from voxrender.pipeline import Encoded
-from voxrender.render import DEFAULT_METHOD, METHODS, render
+from voxrender._render import DEFAULT_METHOD, METHODS, render
 from voxrender.view import View
 
 THRESHOLD = 300.0        # bone: a thin, convoluted object (the issue's case)
@@ -178,7 +178,7 @@ def bench_stages(path, repeat, size=512, peer=None):
     points and lighting), the same with ambient occlusion, the paper's depth-gradient shading, and the PNG write;
     the whole picture beside VTK's render of the same view (``peer``); medians of ``repeat``."""
     from voxrender import output
-    from voxrender.picture import RenderOptions, picture
+    from voxrender._picture import RenderOptions, picture
     from voxrender.pipeline import PrepOptions, load_segments
 
     loaded = load_segments(path, prepare=PrepOptions(threshold=THRESHOLD))
@@ -292,7 +292,7 @@ def thin_shell(n=128, radius=50.0):
 
 def bench_raycast(repeat, cases):
     """Steps, time, leaks and misses of 6-, 26- and adaptive rays (Cohen-Or and Kaufman's trade-off)."""
-    from voxrender.render.raycast import render_raycast
+    from voxrender._render.raycast import render_raycast
 
     result = {}
     for name, (encoded, view) in cases.items():
@@ -312,7 +312,7 @@ def bench_raycast(repeat, cases):
 def bench_batch(path, views=36, size=512, separate=True):
     """A turntable of ``views`` pictures: one batch with 1 and 2 workers against separate render commands."""
     from voxrender.batch import Patterns, items_from, parse_views, run_batch
-    from voxrender.picture import RenderOptions
+    from voxrender._picture import RenderOptions
     from voxrender.pipeline import PrepOptions, ReadOptions
 
     result = {"views": views, "size": size}

@@ -58,7 +58,7 @@ def head_cases(folder):
 
 def record(cases, methods=METHODS):
     from voxrender import segments
-    from voxrender.render import Clip, render
+    from voxrender._render import Clip, render
     from voxrender.view import View
 
     result = {}

@@ -11,7 +11,7 @@ from pathlib import Path
 from click.testing import CliRunner
 
 from voxrender.cli import main
-from voxrender.render import METHODS
+from voxrender._render import METHODS
 
 GOLDEN = Path(__file__).resolve().parent / "golden"
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"

@@ -9,7 +9,7 @@ from click.testing import CliRunner
 from voxrender import batch
 from voxrender.cli import main
 from voxrender.errors import InputError
-from voxrender.picture import RenderOptions
+from voxrender._picture import RenderOptions
 from voxrender.pipeline import PrepOptions, ReadOptions
 from voxrender.view import PRESETS, rotation_matrix
 

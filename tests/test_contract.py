@@ -19,9 +19,9 @@ import pytest
 
 from reference import entries, exact, hits, ties
 from voxrender import segments
-from voxrender.render import Clip, render
-from voxrender.render.ftb import render_ftb
-from voxrender.render.preimage import preimage_view
+from voxrender._render import Clip, render
+from voxrender._render.ftb import render_ftb
+from voxrender._render.preimage import preimage_view
 from voxrender.view import View, angles_from_vpn
 
 SIZE = (40, 44)

@@ -7,7 +7,7 @@ from conftest import data_path
 from reference import exact_labels
 from voxrender import segments
 from voxrender.labels import label_at, label_image, label_pixels
-from voxrender.render import METHODS, Clip, render
+from voxrender._render import METHODS, Clip, render
 from voxrender.view import View, angles_from_vpn
 
 SIZE = (40, 44)

@@ -8,7 +8,7 @@ from scipy import ndimage
 from scipy.special import erf
 
 from voxrender import normals, segments
-from voxrender.render import render
+from voxrender._render import render
 from voxrender.shade import surface_normals as depth_gradient_normals
 from voxrender.view import View
 
@@ -168,7 +168,7 @@ def test_the_band_found_in_blocks_of_slices_is_the_whole_band(slices):
 
 
 def test_cut_faces_take_their_own_normal_and_natural_surfaces_keep_the_gradient():
-    from voxrender.render.clip import Clip
+    from voxrender._render.clip import Clip
 
     mask = np.zeros((12, 12, 12), bool)
     mask[:, 3:9, 3:9] = True                       # a bar through the whole volume along z: cut by its two ends

@@ -6,7 +6,7 @@ import pytest
 from formats import SPACING, phantom, stored, write_dicom, write_metaimage, write_nifti, write_nrrd
 from voxrender import orient, segments
 from voxrender.errors import InputError
-from voxrender.picture import RenderOptions, picture
+from voxrender._picture import RenderOptions, picture
 from voxrender.pipeline import PrepOptions, ReadOptions, load_segments
 from voxrender.view import PRESETS
 

@@ -11,9 +11,9 @@ from click.testing import CliRunner
 
 from voxrender.cli import main
 from voxrender.errors import InputError
-from voxrender.picture import Outputs, RenderOptions, picture, write_outputs
+from voxrender._picture import Outputs, RenderOptions, picture, write_outputs
 from voxrender.pipeline import PrepOptions, load_segments
-from voxrender.render import METHODS, Clip
+from voxrender._render import METHODS, Clip
 from voxrender.view import View
 
 ANGLES = (30.0, 20.0, 10.0)
@@ -127,7 +127,7 @@ output_kinds.OUTPUTS["coverage_png"] = output_kinds.OutputKind(
     lambda path, result, about: output.write_png(path, result.image.coverage.astype(np.uint8) * 255), "coverage-png")
 
 from voxrender.cli import main
-from voxrender.picture import Outputs, picture, write_outputs
+from voxrender._picture import Outputs, picture, write_outputs
 from voxrender.segments import encode
 from voxrender.view import View
 

@@ -5,9 +5,9 @@ import pytest
 
 from voxrender import segments
 from voxrender.errors import InputError
-from voxrender.picture import RenderOptions, picture
-from voxrender.render import METHODS, Method, render
-from voxrender.render.geometry import paint_boxes
+from voxrender._picture import RenderOptions, picture
+from voxrender._render import METHODS, Method, render
+from voxrender._render.geometry import paint_boxes
 from voxrender.view import View
 
 

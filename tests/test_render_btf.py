@@ -4,9 +4,9 @@ import pytest
 from reference import exact
 from test_contract import check
 from voxrender import segments
-from voxrender.render import render
-from voxrender.render.btf import render_btf
-from voxrender.render.literal.btf import render_btf_literal
+from voxrender._render import render
+from voxrender._render.btf import render_btf
+from voxrender._render.literal.btf import render_btf_literal
 from voxrender.view import View
 
 VIEWS = [(0, 0, 0, 1.0), (30, 20, 0, 1.3), (-45, 15, 10, 2.0), (60, 120, 0, 0.5), (90, 0, 0, 3.0),
@@ -56,7 +56,7 @@ def test_painter_order_hides_what_is_behind():
 
 def test_a_reversed_order_paints_what_is_behind(monkeypatch):
     """Both versions paint over and compare no depths: turned front to back, the far slab would show."""
-    import voxrender.render.btf as btf
+    import voxrender._render.btf as btf
 
     mask = np.zeros((5, 3, 3), bool)
     mask[1] = True

@@ -3,11 +3,11 @@ import pytest
 
 from test_contract import check
 from voxrender import segments
-from voxrender.render import render
-from voxrender.render.btf import render_btf
-from voxrender.render.clip import Clip
-from voxrender.render.ftb import render_ftb
-from voxrender.render.literal.ftb import render_ftb_literal
+from voxrender._render import render
+from voxrender._render.btf import render_btf
+from voxrender._render.clip import Clip
+from voxrender._render.ftb import render_ftb
+from voxrender._render.literal.ftb import render_ftb_literal
 from voxrender.view import View
 
 # The paper's Fig. 10 orientations, both ranges of alpha, gimbal lock, axis-aligned views, scales below
@@ -108,9 +108,9 @@ def test_vhf_head_ftb_equals_btf():
 
 def test_production_equals_literal_off_centre(ball):
     """With the picture centred off the volume centre (the default framing), the literal versions follow."""
-    from voxrender.render.literal.btf import render_btf_literal
-    from voxrender.render.literal.octree_btf import render_octree_btf_literal
-    from voxrender.render.octree_btf import render_octree_btf
+    from voxrender._render.literal.btf import render_btf_literal
+    from voxrender._render.literal.octree_btf import render_octree_btf_literal
+    from voxrender._render.octree_btf import render_octree_btf
 
     encoded = segments.encode(ball)
     view = View(40, 25, 0, (30, 32), 1.6, centre=(1.7, -2.2))

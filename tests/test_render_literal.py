@@ -1,4 +1,4 @@
-"""The literal oracles stand apart from the code they check (see ``voxrender/render/literal/__init__.py``)."""
+"""The literal oracles stand apart from the code they check (see ``voxrender/_render/literal/__init__.py``)."""
 
 import ast
 from pathlib import Path
@@ -6,7 +6,7 @@ from pathlib import Path
 import voxrender
 
 PACKAGE = Path(voxrender.__file__).parent
-LITERAL = PACKAGE / "render" / "literal"
+LITERAL = PACKAGE / "_render" / "literal"
 
 
 def imported(path):
@@ -24,13 +24,14 @@ def imported(path):
 
 
 def test_the_literal_versions_take_only_the_region_octree_from_voxrender():
+    assert len(list(LITERAL.glob("*.py"))) >= 7
     for path in LITERAL.glob("*.py"):
         taken = {name for name in imported(path) if name.partition(".")[0] == "voxrender"}
-        assert {name for name in taken if not name.startswith("voxrender.render.literal")} <= {"voxrender.octree"}, \
+        assert {name for name in taken if not name.startswith("voxrender._render.literal")} <= {"voxrender.octree"}, \
             path.name
 
 
 def test_no_production_module_imports_the_literal_versions():
     for path in PACKAGE.rglob("*.py"):
         if LITERAL not in path.parents:
-            assert not any(name.startswith("voxrender.render.literal") for name in imported(path)), path
+            assert not any(name.startswith("voxrender._render.literal") for name in imported(path)), path

@@ -3,9 +3,9 @@ import pytest
 
 from reference import exact
 from voxrender import octree, samples, segments
-from voxrender.render.clip import Clip
-from voxrender.render.literal.octree_sort import recode_literal, render_octree_sort_literal, render_zbuffer_literal
-from voxrender.render.octree_sort import decode, recode, render_octree_sort, render_zbuffer, visible_faces, voxel_codes
+from voxrender._render.clip import Clip
+from voxrender._render.literal.octree_sort import recode_literal, render_octree_sort_literal, render_zbuffer_literal
+from voxrender._render.octree_sort import decode, recode, render_octree_sort, render_zbuffer, visible_faces, voxel_codes
 from voxrender.view import View
 
 # The linear-octree paper's Table 2: (x, y, z), Q, Q' for VPN (1.0, 1.1, 1.2), Q' for VPN (-2.0, 1.5, 1.0).

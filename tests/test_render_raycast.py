@@ -3,8 +3,8 @@ import pytest
 
 from reference import entries, exact
 from voxrender import segments
-from voxrender.render import render
-from voxrender.render.raycast import proximity_band, render_raycast
+from voxrender._render import render
+from voxrender._render.raycast import proximity_band, render_raycast
 from voxrender.view import View
 
 VIEWS = [(31, 19, 7, 1.3), (-45, 15, 10, 2.0), (61, 119, 0, 0.7), (12, -80, 5, 2.5), (0, 0, 0, 1.0)]
@@ -83,7 +83,7 @@ def test_bad_connectivity(ball):
 def test_skipping_empty_space_reaches_the_same_voxels_with_the_same_logical_steps(ball):
     """Jumps over empty space (the chessboard distance of ``empty_space``) land where the steps one by one land:
     the same hit voxels, the same counts of 26- and 6-steps, in fewer iterations."""
-    from voxrender.render.raycast import _cast, empty_space
+    from voxrender._render.raycast import _cast, empty_space
 
     rng = np.random.default_rng(4)
     specks = np.zeros((40, 44, 48), bool)

@@ -35,8 +35,8 @@ import numpy as np
 from . import __version__, output, parse, segments
 from .errors import InputError
 from .output_kinds import OUTPUTS, fields_per_output
-from .render import framing_box, method_record
-from .picture import Outputs, RenderOptions, about, picture, write_outputs
+from ._render import framing_box, method_record
+from ._picture import Outputs, RenderOptions, about, picture, write_outputs
 from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
 from .prep import LabelSelection, otsu_threshold
 from .view import PRESETS, angles_from_matrix, frame_together, rotation_matrix
@@ -112,7 +112,7 @@ def parse_views(names=(), angles=(), turntable_count=None, axis="z"):
 @fields_per_output(str, picture="{name}/{view}.png")
 class Patterns:
     """Where a batch writes each picture: a pattern per output (a field per record of
-    :data:`voxrender.output_kinds.OUTPUTS`, as :class:`~voxrender.picture.Outputs` has), with ``{name}``,
+    :data:`voxrender.output_kinds.OUTPUTS`, as :class:`~voxrender._picture.Outputs` has), with ``{name}``,
     ``{view}``, ``{method}`` and ``{index}``, relative to the batch's folder; ``None`` for an output not wanted.
 
     >>> Patterns(depth="{name}/{view}.npy").outputs("out", name="head", view="left").depth
@@ -120,7 +120,7 @@ class Patterns:
     """
 
     def outputs(self, out_dir, **fields):
-        """The :class:`~voxrender.picture.Outputs` of one picture: each pattern filled in with ``fields``."""
+        """The :class:`~voxrender._picture.Outputs` of one picture: each pattern filled in with ``fields``."""
         return Outputs(**{name: None if pattern is None else Path(out_dir) / pattern.format(**fields)
                           for name, pattern in asdict(self).items()})
 

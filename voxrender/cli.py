@@ -21,10 +21,10 @@ from . import __version__, batch, colours, compare, io, lines, octree, orient, o
 from .sheet import render_sheet, sheet
 from .errors import InputError
 from .output_kinds import LABELS, OUTPUTS
-from .picture import Outputs, RenderOptions, about, label_table, picture, write_outputs
+from ._picture import Outputs, RenderOptions, about, label_table, picture, write_outputs
 from .pipeline import Encoded, PrepOptions, ReadOptions, is_segments_file, load_segments
-from .render import DEFAULT_METHOD, METHODS, Clip
-from .render.raycast import CONNECTIVITIES
+from ._render import DEFAULT_METHOD, METHODS, Clip
+from ._render.raycast import CONNECTIVITIES
 from .shade import HEADLIGHT, SHADINGS
 from .view import PRESETS, angles_from_vpn
 

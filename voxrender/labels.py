@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .render.geometry import ray_box_entry
+from ._render.geometry import ray_box_entry
 
 __all__ = ["label_at", "label_image", "label_pixels"]
 
@@ -50,7 +50,7 @@ def label_at(segments, x, y, z):
 
 
 def label_image(segments, image, clip=None):
-    """The label image ``uint16 (H, W)`` of a rendered :class:`~voxrender.render.DepthImage`: 0 where the ray
+    """The label image ``uint16 (H, W)`` of a rendered :class:`~voxrender._render.DepthImage`: 0 where the ray
     meets nothing (see the module docstring for the rule).
 
     Parameters
@@ -65,7 +65,7 @@ def label_image(segments, image, clip=None):
     Examples
     --------
     >>> from voxrender.segments import encode_labels
-    >>> from voxrender.render import render
+    >>> from voxrender._render import render
     >>> from voxrender.view import View
     >>> values = np.zeros((3, 3, 4), np.uint16); values[1, 1, :2] = 3; values[1, 1, 2:] = 1
     >>> labels = label_image(encode_labels(values), render(encode_labels(values), View(size=(4, 8), scale=2.0)))

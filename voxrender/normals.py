@@ -316,7 +316,7 @@ def kept(segments):
 def normal_image(depth, view, shape, normals, segments=None, clip=None):
     """Unit normals ``(H, W, 3)`` in image space (toward the viewer: negative Z') at each pixel's hit point;
     NaN where the ray meets nothing or no normal is known.  Where the object was cut, by the volume's edge or
-    by ``clip`` (:class:`~voxrender.render.clip.Clip`, with the ``segments`` it cut), the cut face's own normal
+    by ``clip`` (:class:`~voxrender._render.clip.Clip`, with the ``segments`` it cut), the cut face's own normal
     (:func:`cut_normals`)."""
     height, width = depth.shape
     out = np.full((height, width, 3), np.nan, np.float32)

@@ -1,8 +1,8 @@
 """The kinds of output a picture is written to: the registry ``OUTPUTS`` of :class:`OutputKind` records.
 
-As :data:`voxrender.render.METHODS` is for renderers, ``OUTPUTS`` is the one place an output is spelt out: the
+As :data:`voxrender.METHODS` is for renderers, ``OUTPUTS`` is the one place an output is spelt out: the
 ending of its file, its help, how it is written and what the picture must have for it.  The rest is derived from
-it: :class:`voxrender.picture.Outputs` (a path per output) and :func:`voxrender.picture.write_outputs`,
+it: :class:`voxrender._picture.Outputs` (a path per output) and :func:`voxrender._picture.write_outputs`,
 :class:`voxrender.batch.Patterns` (a pattern per output) and its check of the endings, and the command line's
 options.  Adding an output is one record.
 """
@@ -24,13 +24,13 @@ class Need:
     Parameters
     ----------
     field : str
-        The :class:`~voxrender.picture.Picture` field the output writes, ``None`` on the pictures without it.
+        The :class:`~voxrender._picture.Picture` field the output writes, ``None`` on the pictures without it.
     lacking : str
         Why a picture is without it and what to do, in words (the message of the error that refuses the output).
     parameter : str, optional
         The parameter at fault (default: the output's own).
     given : callable, optional
-        ``given(options)``: whether the pictures of these :class:`~voxrender.picture.RenderOptions` have it, when
+        ``given(options)``: whether the pictures of these :class:`~voxrender._picture.RenderOptions` have it, when
         the options alone tell; checked before anything is rendered.
     """
 
@@ -56,8 +56,8 @@ class OutputKind:
     help : str
         What it holds, as the command line's help of its flag says it.
     write : callable
-        ``write(path, result, about)`` writes it from the :class:`~voxrender.picture.Picture` ``result``; ``about``
-        holds the fields the JSON report adds (see :func:`~voxrender.picture.write_outputs`).
+        ``write(path, result, about)`` writes it from the :class:`~voxrender._picture.Picture` ``result``; ``about``
+        holds the fields the JSON report adds (see :func:`~voxrender._picture.write_outputs`).
     flag : str, optional
         Its flag on the command line, without the dashes (``"depth-out"``); ``None`` for the picture, which each
         command names in its own way.

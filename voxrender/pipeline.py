@@ -104,7 +104,7 @@ class Encoded:
 
     def tree_for(self, method):
         """The region octree when ``method`` traverses one (see :meth:`octree`), else ``None``."""
-        from .render import method_record
+        from ._render import method_record
 
         return self.octree() if method_record(method).octree else None
 

@@ -46,8 +46,8 @@ def render_sheet(rows, views, progress=None):
 
     A row of several views frames them with one scale, as a batch does.
     """
-    from .picture import picture
-    from .render import framing_box
+    from ._picture import picture
+    from ._render import framing_box
     from .view import frame_together
 
     pictures, captions = [], []

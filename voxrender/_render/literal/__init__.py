@@ -1,11 +1,11 @@
 """The literal renderers: each algorithm as its paper writes it, kept beside the fast one as the tests' oracle.
 
-Every renderer of :mod:`voxrender.render` is vectorised with NumPy; its literal version here follows the paper
+Every renderer of :mod:`voxrender._render` is vectorised with NumPy; its literal version here follows the paper
 step by step, one voxel, face or pixel at a time, in plain Python: slow on purpose, and never used to make a
 picture.  The two must give the same coverage, the same depths within 1e-5 voxels and the same statistics.
 
-The literal versions share no code with the production geometry (:mod:`voxrender.render.geometry`, the
-:class:`~voxrender.view.View`'s mappings, :mod:`voxrender.render.clip`): :mod:`.geometry` writes the view
+The literal versions share no code with the production geometry (:mod:`voxrender._render.geometry`, the
+:class:`~voxrender.view.View`'s mappings, :mod:`voxrender._render.clip`): :mod:`.geometry` writes the view
 contract out again, so that a slip in either geometry shows as a disagreement.  Of the rest of voxrender they
 take only the region octree (:mod:`voxrender.octree`), and no production module imports them
 (``tests/test_render_literal.py`` checks both).

@@ -1,6 +1,6 @@
 """The sorted linear octree and the z-buffer one voxel at a time.
 
-The oracles of :mod:`voxrender.render.octree_sort`.  They take nothing from the production renderers but the
+The oracles of :mod:`voxrender._render.octree_sort`.  They take nothing from the production renderers but the
 region octree: the codes are broken into voxels and recoded bit by bit as the paper writes it
 (:func:`recode_literal`), sorted with Python's sort, decoded digit by digit, and each voxel's cube is painted
 with :mod:`.geometry`.

@@ -56,7 +56,7 @@ def _face_geometry(tree, nodes, axis, side):
 
 
 def paint_faces(tree, nodes, axis, side, view, shape):
-    """:func:`~voxrender.render.geometry.paint_boxes` for the faces of ``nodes`` on ``axis`` (``side`` +1 or -1);
+    """:func:`~voxrender._render.geometry.paint_boxes` for the faces of ``nodes`` on ``axis`` (``side`` +1 or -1);
     ``owner`` holds node numbers."""
     centre, half = _face_geometry(tree, nodes, axis, side)
     found = paint_boxes(view, shape, centre[:, 0], centre[:, 1], centre[:, 2], half, count_scanlines=True)

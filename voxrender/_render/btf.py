@@ -10,7 +10,7 @@ of the view contract.
 :func:`render_btf` paints one slice at a time with array operations: the slice's
 voxels are put in back-to-front order and, at every pixel, the last of them to
 cover it wins, as if painted one by one; the slice is then painted over the
-image.  :func:`~voxrender.render.literal.btf.render_btf_literal` paints voxel by
+image.  :func:`~voxrender._render.literal.btf.render_btf_literal` paints voxel by
 voxel, as the paper does; it is the test oracle.  Both are painters: the order
 decides, and nothing compares depths.
 
@@ -61,7 +61,7 @@ def render_btf(segments, view, progress=None, clip=None):
     progress : callable, optional
         ``progress(iterable, length, label)``.
     clip : Clip, optional
-        Clip limits and cut plane (see :mod:`voxrender.render.clip`).
+        Clip limits and cut plane (see :mod:`voxrender._render.clip`).
 
     Returns
     -------

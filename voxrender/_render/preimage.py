@@ -101,7 +101,7 @@ def render_preimage(renderer, segments, view, supersample=2, progress=None, clip
     Examples
     --------
     >>> from voxrender.segments import encode
-    >>> from voxrender.render.ftb import render_ftb
+    >>> from voxrender._render.ftb import render_ftb
     >>> depth, stats = render_preimage(render_ftb, encode(np.ones((2, 2, 2), bool)),
     ...                                View(gamma=45, size=(6, 6), scale=1.0))
     >>> int(np.isfinite(depth).sum()), stats["supersample"]

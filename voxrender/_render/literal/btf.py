@@ -1,8 +1,8 @@
-"""Back-to-front display voxel by voxel, as the paper describes it: the oracle of :mod:`voxrender.render.btf`.
+"""Back-to-front display voxel by voxel, as the paper describes it: the oracle of :mod:`voxrender._render.btf`.
 
 Each voxel's cube is painted over what is behind it with the literal geometry (:mod:`.geometry`), one pixel
 at a time.  Where a ray only touches two cubes the voxel painted last keeps the pixel, as in the fast painter
-(see the ties in :mod:`voxrender.render.btf`).
+(see the ties in :mod:`voxrender._render.btf`).
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@
 (Fig. 5).  Slices and rows are read front to back (Fig. 9); for each row and
 each scanline its parallelepipeds reach, MERGE (Fig. 6) walks the row's
 projected segments and the unlit segments together and takes one of eight
-actions each step.  Slow on purpose: it is what :func:`~voxrender.render.ftb.render_ftb`
+actions each step.  Slow on purpose: it is what :func:`~voxrender._render.ftb.render_ftb`
 is checked against, depth image and statistics alike.
 
 It shares no geometry with the vectorised version: every parallelepiped is scan-converted
@@ -100,7 +100,7 @@ def render_ftb_literal(segments, view, clip=None):
     """Front-to-back rendering with linked lists, one segment and one MERGE case at a time.
 
     The view's gamma is ignored (it turns the pre-image afterwards); the statistics are those of
-    :func:`~voxrender.render.ftb.render_ftb`.
+    :func:`~voxrender._render.ftb.render_ftb`.
     """
     r = geometry.rotation(view.alpha, view.beta)
     size, scale, middle = tuple(view.size), view.scale, tuple(view.centre)

@@ -12,7 +12,7 @@ painted, lit pixels leave the list and are never looked at again, and a row is
 skipped on a scanline that has no unlit pixel left.
 
 Here the parallelepiped's span on each scanline is computed in closed form
-(:func:`~voxrender.render.geometry.row_spans`), the exact limit of the paper's
+(:func:`~voxrender._render.geometry.row_spans`), the exact limit of the paper's
 DDA, and each lit pixel takes the depth where its ray enters the segment's box,
 so the depth image is the view contract's.
 
@@ -287,13 +287,13 @@ def render_ftb(segments, view, progress=None, clip=None, items=False):
     ----------
     segments : Segments
     view : View
-        With ``scale`` set; ``gamma`` is ignored (see :func:`voxrender.render.render_preimage`).
+        With ``scale`` set; ``gamma`` is ignored (see :func:`voxrender._render.render_preimage`).
     progress : callable, optional
     clip : Clip, optional
     items : bool
         Also return the item buffer ``(owner, boxes)``: for each pixel the index of the box
         (run) that lit it, ``-1`` for none, and per box its centre x, y, z and half-length
-        in object coordinates.  :func:`voxrender.render.preimage.render_preimage` uses it to
+        in object coordinates.  :func:`voxrender._render.preimage.render_preimage` uses it to
         turn the pre-image by gamma exactly.
 
     Returns

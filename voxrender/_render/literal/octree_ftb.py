@@ -1,7 +1,7 @@
 """Zhao and Davis's front-to-back octree display with blocking quadtrees, as the paper writes it.
 
 This is the literal, recursive implementation: the oracle for the vectorised version
-(:mod:`voxrender.render.octree_ftb`, registered as ``octree-ftb``).  It takes nothing from the
+(:mod:`voxrender._render.octree_ftb`, registered as ``octree-ftb``).  It takes nothing from the
 production renderers but the region octree: faces are scan-converted by :mod:`.geometry`.
 
 One blocking quadtree per potentially visible axis (the seven viewing classes XYZ, XY,

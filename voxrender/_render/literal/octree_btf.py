@@ -1,6 +1,6 @@
 """Meagher's back-to-front octree display as a recursion, face by face.
 
-The oracle of :mod:`voxrender.render.octree_btf`.  It takes nothing from the production renderers but the
+The oracle of :mod:`voxrender._render.octree_btf`.  It takes nothing from the production renderers but the
 region octree itself: the view plane normal, the visible faces, the order of the children and the
 scan-conversion of each face (:mod:`.geometry`, every pixel whose ray meets the closed square, at the depth
 where it meets it) are its own.  The helpers here are shared with the literal front-to-back traversal

@@ -19,7 +19,7 @@ from . import shade
 from .errors import InputError
 from .output_kinds import OUTPUTS, fields_per_output
 from .shade import HEADLIGHT, SHADINGS, light_direction
-from .render import DEFAULT_METHOD, Clip, DepthImage, method_record, render
+from ._render import DEFAULT_METHOD, Clip, DepthImage, method_record, render
 from .view import View
 
 __all__ = ["RenderOptions", "Outputs", "Picture", "picture", "label_table", "write_outputs", "about"]
@@ -33,7 +33,7 @@ class RenderOptions:
     Parameters
     ----------
     method : str
-        A name in :data:`voxrender.render.METHODS`.
+        A name in :data:`voxrender.METHODS`.
     method_options : dict
         The method's own options (e.g. ``{"connectivity": "6"}`` for ``raycast``).
     clip : Clip, optional
