@@ -53,7 +53,7 @@ def test_views_and_names():
         batch.parse_views(["left", "left"])
     with pytest.raises(InputError):
         batch.parse_views(["sideways"])
-    assert batch.unique_names(["x/ct", "y/ct", "z/a.npy"]) == ["ct", "ct-2", "a"]
+    assert batch._unique_names(["x/ct", "y/ct", "z/a.npy"]) == ["ct", "ct-2", "a"]
 
 
 def test_manifests(tmp_path, stacks):

@@ -38,7 +38,7 @@ def test_depth_steps_do_not_make_shading_edges():
 def test_smooth_depth_keeps_background():
     depth = np.full((5, 5), np.inf)
     depth[1:4, 1:4] = 3.0
-    smoothed = shade.smooth_depth(depth, 1.0)
+    smoothed = shade._smooth_depth(depth, 1.0)
     assert np.array_equal(np.isfinite(smoothed), np.isfinite(depth))
     assert np.allclose(smoothed[np.isfinite(smoothed)], 3.0)
 

@@ -43,6 +43,8 @@ _PUBLIC = {
     "PrepOptions": ".pipeline",
     "render": "._render",
     "METHODS": "._render",
+    "DepthImage": "._render",
+    "Clip": "._render",
     "picture": "._picture",
     "RenderOptions": "._picture",
     "View": ".view",

@@ -22,8 +22,6 @@ from .shade import HEADLIGHT, SHADINGS, light_direction
 from ._render import DEFAULT_METHOD, Clip, DepthImage, method_record, render
 from .view import View
 
-__all__ = ["RenderOptions", "Outputs", "Picture", "picture", "label_table", "write_outputs", "about"]
-
 
 
 @dataclass(frozen=True)

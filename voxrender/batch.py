@@ -41,8 +41,6 @@ from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
 from .prep import LabelSelection, otsu_threshold
 from .view import PRESETS, angles_from_matrix, frame_together, rotation_matrix
 
-__all__ = ["ViewSpec", "Patterns", "Item", "parse_views", "turntable", "expand_inputs", "read_manifest",
-           "cache_key", "run_batch", "SUMMARY_COLUMNS"]
 
 SUMMARY_COLUMNS = ["input", "name", "view", "alpha", "beta", "gamma", "method", "output", "status", "error",
                    "labels", "load_s", "prepare_s", "render_s", "shade_s", "write_s", "total_s", "stats"]
@@ -171,10 +169,10 @@ def expand_inputs(patterns):
     return found
 
 
-def unique_names(paths):
+def _unique_names(paths):
     """A short, distinct name per input: its folder or file name, numbered when two are the same.
 
-    >>> unique_names(["a/ct", "b/ct", "c/head.mha", "d/ct.nii.gz"])
+    >>> _unique_names(["a/ct", "b/ct", "c/head.mha", "d/ct.nii.gz"])
     ['ct', 'ct-2', 'head', 'ct-3']
     """
     names, seen = [], {}
@@ -229,7 +227,7 @@ def items_from(inputs, manifest_rows, read, prepare, options, views, patterns, p
     rows = [{"input": p} for p in inputs] + list(manifest_rows)
     if not rows:
         raise InputError("no inputs: give paths, globs or a manifest", parameter="inputs")
-    names = unique_names([row["input"] for row in rows])
+    names = _unique_names([row["input"] for row in rows])
     items = []
     for row, name in zip(rows, names):
         try:
@@ -283,7 +281,7 @@ def _stable(value):
 
 # ------------------------------------------------------------------ the two kinds of task (run in workers)
 
-def encode_task(item, cache_dir):
+def _encode_task(item, cache_dir):
     """Phase 1: the cached ``.vxs`` of ``item`` (made now if absent); returns a small report dict."""
     started = time.perf_counter()
     try:
@@ -313,7 +311,7 @@ def _encoded(path, stamp):
     return load_segments(path)
 
 
-def summary_row(item, view, picture_path, status, error="", **numbers):
+def _summary_row(item, view, picture_path, status, error="", **numbers):
     """The summary row of one picture (see ``SUMMARY_COLUMNS``): which input, view and method, where it went, its
     ``status`` (``"ok"``, ``"done earlier"`` or ``"failed"``) and ``error``, and, once made, its ``numbers``.
     """
@@ -322,7 +320,7 @@ def summary_row(item, view, picture_path, status, error="", **numbers):
             "error": error, **numbers}
 
 
-def render_task(item, view, index, segments_path, out_dir, encode_seconds):
+def _render_task(item, view, index, segments_path, out_dir, encode_seconds):
     """Phase 2: render one view of one input and write its outputs; returns its summary row."""
     outputs = item.outputs(out_dir, view, index)
     try:
@@ -336,10 +334,10 @@ def render_task(item, view, index, segments_path, out_dir, encode_seconds):
         if item.per_label and result.labels is not None:
             _write_label_pictures(item, result, encoded.segments, outputs.picture)
     except InputError as exc:
-        return summary_row(item, view, outputs.picture, "failed", str(exc))
+        return _summary_row(item, view, outputs.picture, "failed", str(exc))
     except Exception as exc:  # reported in the summary; the batch goes on
-        return summary_row(item, view, outputs.picture, "failed", f"internal error: {type(exc).__name__}: {exc}")
-    return summary_row(item, view, outputs.picture, "ok", stats=json.dumps(result.image.stats, default=float),
+        return _summary_row(item, view, outputs.picture, "failed", f"internal error: {type(exc).__name__}: {exc}")
+    return _summary_row(item, view, outputs.picture, "ok", stats=json.dumps(result.image.stats, default=float),
                        labels=len(result.image.stats.get("label_pixels", {})) if result.labels is not None else "",
                        load_s=encode_seconds.get("load", 0.0), prepare_s=encode_seconds.get("prepare", 0.0),
                        **{f"{stage}_s": value for stage, value in seconds.items()})   # load and prepare: the input's
@@ -365,7 +363,7 @@ def framed(item, view, encoded):
     return frame_together([chosen, *others], encoded.shape, framing_box(encoded, item.options.clip))[0]
 
 
-def is_done(path, size):
+def _is_done(path, size):
     """Whether ``path`` is a readable PNG of the expected ``size = (H, W)`` (a finished picture)."""
     import imageio.v3 as iio
 
@@ -445,7 +443,7 @@ class _Dask:
             self.cluster.close()
 
 
-def executor(jobs, scheduler=None):
+def _executor(jobs, scheduler=None):
     if scheduler:
         return _Dask(scheduler, jobs)
     return _Inline() if jobs <= 1 else _Processes(jobs)
@@ -489,14 +487,14 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
     for item in items:
         for index, view in enumerate(item.views):
             output = item.output(out_dir, view, index)
-            if is_done(output, item.options.size):
-                rows[(item.name, view.label)] = summary_row(item, view, output, "done earlier")
+            if _is_done(output, item.options.size):
+                rows[(item.name, view.label)] = _summary_row(item, view, output, "done earlier")
             else:
                 todo.setdefault(id(item), (item, []))[1].append((index, view))
     bar = progress(len(todo) + sum(len(v) for _, v in todo.values())) if progress else None
-    pool = executor(jobs, scheduler)
+    pool = _executor(jobs, scheduler)
     try:
-        encodes = {pool.submit(encode_task, item, str(cache_dir)): (item, views) for item, views in todo.values()}
+        encodes = {pool.submit(_encode_task, item, str(cache_dir)): (item, views) for item, views in todo.values()}
         renders = []
         for future in pool.as_completed(list(encodes)):
             item, views = encodes[future]
@@ -505,13 +503,13 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
                 bar.update(1)
             if "error" in report:
                 for index, view in views:
-                    rows[(item.name, view.label)] = summary_row(item, view, item.output(out_dir, view, index),
+                    rows[(item.name, view.label)] = _summary_row(item, view, item.output(out_dir, view, index),
                                                                 "failed", report["error"])
                 if bar:
                     bar.update(len(views))
                 continue
             for index, view in views:
-                renders.append(pool.submit(render_task, item, view, index, report["segments"], str(out_dir),
+                renders.append(pool.submit(_render_task, item, view, index, report["segments"], str(out_dir),
                                            report["seconds"]))
         for future in pool.as_completed(renders):
             row = future.result()

@@ -20,7 +20,6 @@ import numpy as np
 from .errors import InputError
 from .prep import Window
 
-__all__ = ["NAMED", "named_colour", "palette", "read_colour_table", "label_colours", "Preset", "PRESETS", "preset"]
 
 # A few colour names a user may type (and the tissue colours of the presets).
 NAMED = {

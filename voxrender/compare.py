@@ -6,7 +6,6 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["compare", "read_picture"]
 
 
 def read_picture(path):

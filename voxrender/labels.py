@@ -13,7 +13,6 @@ import numpy as np
 
 from ._render.geometry import ray_box_entry
 
-__all__ = ["label_at", "label_image", "label_pixels"]
 
 # How far (voxels) a hit point computed from a float32 depth may lie from the cube it is on.
 _ON_CUBE = 1e-3

@@ -25,8 +25,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["d6", "d18", "d26", "Frame", "line26", "line26_symmetric", "line18", "line6_tripod",
-           "line6_parametric", "line2d_switch", "Stepper", "metrics_table", "TABLE1_ANALYTICAL", "TABLE1_PRINTED", "is_connected"]
 
 
 def d6(delta):

@@ -19,9 +19,6 @@ from functools import cached_property
 
 import numpy as np
 
-__all__ = ["SurfaceNormals", "surface_band", "band_voxels", "cut_normals", "surface_normals", "octahedral_encode",
-           "octahedral_decode", "normal_image", "kept"]
-
 
 
 def _stencil(radius, smooth, derive):

@@ -27,9 +27,6 @@ import numpy as np
 from .errors import InputError
 from .segments import expand_runs, ranges
 
-__all__ = ["WHITE", "BLACK", "GREY", "RegionOctree", "build", "build_from_segments", "build_from_voxels",
-           "linear_octree", "code_strings", "codes_to_mask", "sections", "from_sections", "CHILD_OFFSETS", "morton",
-           "unmorton", "Adjacency"]
 
 WHITE, BLACK, GREY = 0, 1, 2
 X_MARKER = 8  # the digit X, which sorts after 0..7
@@ -169,7 +166,7 @@ class RegionOctree:
         # each level is stored in descending Morton order: reversed, the leaves are ascending runs, which a
         # merge sort joins in a pass or two (a quicksort takes 15 times as long)
         leaves = np.flatnonzero(self.first_child < 0)[::-1]
-        codes = morton(self.origin[leaves])
+        codes = _morton(self.origin[leaves])
         order = np.argsort(codes, kind="stable")
         return leaves[order], codes[order]
 
@@ -278,13 +275,13 @@ def _spread_table(bits=11):
 _SPREAD = _spread_table()
 
 
-def morton(points):
+def _morton(points):
     """Morton (Z-order) codes of integer ``(x, y, z)`` points (below 2^21): their bits interleaved, x lowest.
 
     Aligned cubes of the octree are contiguous ranges of codes, so a sorted list of leaf codes
     locates the leaf holding any voxel with one binary search.
 
-    >>> morton(np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [3, 3, 3]])).tolist()
+    >>> _morton(np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [3, 3, 3]])).tolist()
     [1, 2, 4, 63]
     """
     points = np.asarray(points)
@@ -292,7 +289,7 @@ def morton(points):
 
 
 def _interleave(x, y, z):
-    """:func:`morton` of the points with coordinate arrays ``x, y, z``."""
+    """:func:`_morton` of the points with coordinate arrays ``x, y, z``."""
     codes = np.zeros(len(x), np.int64)
     for axis, value in enumerate((x, y, z)):          # 11 bits at a time, from a table
         value = np.asarray(value, np.int64)
@@ -303,10 +300,10 @@ def _interleave(x, y, z):
     return codes
 
 
-def unmorton(codes):
-    """The integer ``(x, y, z)`` points of Morton codes: the inverse of :func:`morton`.
+def _unmorton(codes):
+    """The integer ``(x, y, z)`` points of Morton codes: the inverse of :func:`_morton`.
 
-    >>> unmorton(morton(np.array([[5, 3, 9]]))).tolist()
+    >>> _unmorton(_morton(np.array([[5, 3, 9]]))).tolist()
     [[5, 3, 9]]
     """
     codes = np.asarray(codes, np.int64)
@@ -350,7 +347,7 @@ def build_from_voxels(points, shape):
     node's children together in label order (label = 7 - the child's Morton digit), so a level is its cells in
     descending Morton order.
     """
-    return _build(morton(points), shape)
+    return _build(_morton(points), shape)
 
 
 def _build(codes, shape):
@@ -376,7 +373,7 @@ def _build(codes, shape):
         first[grey] = start + len(cells) + 8 * np.arange(len(grey))
         colors.append(color)
         levels.append(np.full(len(cells), k, np.uint8))
-        origins.append(unmorton(cells) << (n - k))
+        origins.append(_unmorton(cells) << (n - k))
         firsts.append(first)
         start += len(cells)
         cells = ((cells[grey] << 3)[:, None] + np.arange(7, -1, -1)).ravel()

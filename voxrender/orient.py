@@ -22,7 +22,6 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["CANONICAL", "code_of", "direction_of", "nearest_axes", "to_canonical", "ras_to_lps"]
 
 CANONICAL = "LPS"
 _POSITIVE, _NEGATIVE = "LPS", "RAI"       # the side each patient axis grows toward, and the opposite side

@@ -16,8 +16,6 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["check_writable", "atomic_output", "write_png", "write_npy", "write_json", "write_slices", "write_nifti",
-           "write_nrrd"]
 
 
 def check_writable(path):

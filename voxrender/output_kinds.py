@@ -14,7 +14,6 @@ from dataclasses import MISSING, dataclass
 
 from . import output, shade
 
-__all__ = ["OutputKind", "Need", "OUTPUTS", "GRADIENT_NORMALS", "LABELS", "fields_per_output"]
 
 
 @dataclass(frozen=True)

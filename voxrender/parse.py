@@ -16,7 +16,6 @@ from .errors import InputError
 from .io import RawLayout
 from .prep import Window, otsu_threshold
 
-__all__ = ["size", "vector", "colour", "clip_range", "crop", "threshold", "presets", "labels", "raw_layout"]
 
 
 def size(text):

@@ -19,7 +19,6 @@ import numpy as np
 from . import io, prep, segments
 from .errors import InputError
 
-__all__ = ["ReadOptions", "PrepOptions", "Encoded", "load_segments", "is_segments_file"]
 
 
 @dataclass(frozen=True)
@@ -179,13 +178,13 @@ def encode_volume(volume, prepare=None, read=None, progress=None, source=None):
         encoded.meta.update(labels=present, label_table={
             str(k): {"name": name, "colour": list(colour)}
             for k, (name, _, colour) in enumerate(prepare.tissues, 1) if k in present})
-        encoded.normals = grey_normals(volume, labels > 0, info, prepare)
+        encoded.normals = _grey_normals(volume, labels > 0, info, prepare)
     elif prepare.labels is None:
         mask, info = prep.binarize(volume, prepare.threshold, crop=prepare.crop, voxel=prepare.voxel,
                                    resample=prepare.resample, min_object=prepare.min_object, progress=progress)
         encoded = segments.encode(mask, info["spacing"], {**meta, "threshold": info["threshold"],
                                                           "voxel_mm": info["voxel"]})
-        encoded.normals = grey_normals(volume, mask, info, prepare)
+        encoded.normals = _grey_normals(volume, mask, info, prepare)
     else:
         encoded = _encode_labels(volume, read, prepare, meta, progress)
     encoded.meta["normals_from"] = encoded.normals.source
@@ -244,7 +243,7 @@ def _encode_labels(volume, read, prepare, meta, progress):
     return encoded
 
 
-def grey_normals(volume, mask, info, prepare):
+def _grey_normals(volume, mask, info, prepare):
     """The surface normals of ``mask`` from the volume's grey values: the cropped input's own voxels when the mask
     lies on its grid, cubic samples of it at the mask's grid points when it was resampled; from the mask itself
     when the volume holds only two values (a binary input)."""

@@ -13,8 +13,6 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["crop", "resampled_shape", "resample_slices", "resample", "otsu_threshold", "Window", "binarize",
-           "classify", "LabelSelection", "label_map"]
 
 
 @dataclass(frozen=True)
@@ -99,7 +97,7 @@ def resampled_shape(shape, spacing, voxel):
     return tuple(_grid_count(n, s, voxel) for n, s in zip(shape, spacing[::-1]))
 
 
-def resample_slices(values, spacing, voxel, progress=None):
+def _resample_slices(values, spacing, voxel, progress=None):
     """Yield the slices of ``values`` resampled to cubic voxels of ``voxel`` mm (float32).
 
     Linear interpolation: in-plane by :func:`skimage.transform.warp`, across slices
@@ -142,7 +140,7 @@ def resample(values, spacing, voxel):
     >>> resample(np.arange(8.0).reshape(2, 2, 2), (1, 1, 2), 1).shape
     (3, 2, 2)
     """
-    return np.stack(list(resample_slices(values, spacing, voxel)))
+    return np.stack(list(_resample_slices(values, spacing, voxel)))
 
 
 def otsu_threshold(values):
@@ -252,7 +250,7 @@ def _windowed(values, spacing, windows, voxel, resample, progress):
     object is made on, slice by slice: resampled to cubic voxels, or the input's own.  Returns it with the voxel
     size and the spacing of that grid."""
     voxel, out_shape = _grid(values.shape, spacing, voxel, resample)
-    planes = resample_slices(values, spacing, voxel, progress) if out_shape is not None else values
+    planes = _resample_slices(values, spacing, voxel, progress) if out_shape is not None else values
     labels = np.empty(out_shape or values.shape, np.uint8)
     for layer, plane in zip(labels, planes):
         windows[0].select(plane, out=layer.view(bool))     # writes 0 and 1

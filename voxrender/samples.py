@@ -17,8 +17,6 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["SAMPLES", "SAMPLE_THRESHOLD", "sphere", "torus", "shell", "staircase", "cylinder", "STAIRCASE_VOXELS",
-           "TISSUES", "tissue_labels", "segment_fields", "headsq_path"]
 
 AIR, OBJECT = 40, 1040
 SAMPLE_THRESHOLD = 500

@@ -26,7 +26,6 @@ import numpy as np
 from .errors import InputError
 from .output import atomic_output
 
-__all__ = ["Segments", "encode", "encode_labels", "save", "load", "read_sections", "from_sections", "is_mapped"]
 
 MAGIC = b"VOXRENDER-SEGMENTS 1\n"
 _ALIGN = 64

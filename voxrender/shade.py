@@ -12,8 +12,6 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["shade", "SHADINGS", "HEADLIGHT", "light_direction", "blinn_phong", "ambient_occlusion", "depth_shading",
-           "gradient_shading", "surface_normals", "depth_to_uint16", "normals_to_rgb"]
 
 
 def _depth_range(depth):
@@ -44,10 +42,10 @@ def light_direction(light):
     return light / np.linalg.norm(light)
 
 
-def depth_shading(depth, near_brightness=1.0, far_brightness=0.2):
+def _depth_shading(depth, near_brightness=1.0, far_brightness=0.2):
     """Brightness in [0, 1] falling linearly from the nearest to the farthest covered pixel; 0 elsewhere.
 
-    >>> depth_shading(np.array([[0.0, 10.0, np.inf]])).round(2).tolist()
+    >>> _depth_shading(np.array([[0.0, 10.0, np.inf]])).round(2).tolist()
     [[1.0, 0.2, 0.0]]
     """
     covered, near, far = _depth_range(depth)
@@ -76,13 +74,13 @@ def _slope(depth, axis, scale):
     return np.nan_to_num(slope, nan=0.0)
 
 
-def smooth_depth(depth, sigma):
+def _smooth_depth(depth, sigma):
     """Depth blurred over covered pixels only (normalised convolution); the background stays ``+inf``.
 
     Voxel depth images are terraced (every cube face is flat); a blur of about
     one voxel turns the terraces back into the surface they sample.
 
-    >>> smooth_depth(np.array([[0.0, 2.0, np.inf]]), 0.0).tolist()
+    >>> _smooth_depth(np.array([[0.0, 2.0, np.inf]]), 0.0).tolist()
     [[0.0, 2.0, inf]]
     """
     from skimage.filters import gaussian
@@ -104,7 +102,7 @@ def surface_normals(depth, scale=1.0, smoothing=0.0):
     >>> surface_normals(np.zeros((3, 3)))[1, 1].tolist()
     [0.0, 0.0, -1.0]
     """
-    depth = smooth_depth(depth, smoothing * scale)
+    depth = _smooth_depth(depth, smoothing * scale)
     gx, gy = _slope(depth, 1, scale), _slope(depth, 0, scale)
     normals = np.stack([gx, gy, -np.ones_like(gx)], axis=-1)
     return normals / np.linalg.norm(normals, axis=-1, keepdims=True)
@@ -143,14 +141,14 @@ HEADLIGHT = (-0.3, -0.4, -1.0)
 SHADINGS = ("gradient", "depth-gradient", "depth")
 
 
-def blinn_phong(normals, depth, light=HEADLIGHT, ambient=0.12, diffuse=0.78, specular=0.22, shininess=24.0,
+def _blinn_phong(normals, depth, light=HEADLIGHT, ambient=0.12, diffuse=0.78, specular=0.22, shininess=24.0,
                 depth_cue=0.2):
     """Brightness in [0, 1] of unit normals ``(..., 3)`` (image space) at depths ``(...)`` lit by a directional
     light, seen from ``-Z'``: ambient, Lambert diffuse and a Blinn-Phong highlight, darkened a little with depth
     (from the nearest to the farthest finite depth given); 0 where the depth is infinite.  Float32 throughout.
 
     >>> flat = np.zeros((1, 1, 3)); flat[..., 2] = -1
-    >>> round(float(blinn_phong(flat, np.zeros((1, 1)), light=(0, 0, -1))[0, 0]), 3)
+    >>> round(float(_blinn_phong(flat, np.zeros((1, 1)), light=(0, 0, -1))[0, 0]), 3)
     1.0
     """
     light = light_direction(light).astype(np.float32)
@@ -185,7 +183,7 @@ def ambient_occlusion(depth, scale=1.0, radius=3.0, directions=8, steps=3):
     depth = np.asarray(depth, dtype=np.float32)
     covered = np.isfinite(depth)
     # the terraces of a voxel depth image are not creases: look at the surface they sample
-    filled = np.where(covered, smooth_depth(depth, scale), np.inf).astype(np.float32)
+    filled = np.where(covered, _smooth_depth(depth, scale), np.inf).astype(np.float32)
     total = np.zeros(depth.shape, np.float32)
     reach = max(radius * scale, 1.0)
     for angle in np.arange(directions) * (2 * np.pi / directions):
@@ -242,11 +240,11 @@ def shade(depth, mode="gradient", scale=1.0, light=HEADLIGHT, colour=(1.0, 1.0, 
         if missing.any():                                   # the depth gradient where no normal is known
             from_depth = surface_normals(depth, scale, 0.7).reshape(-1, 3)[covered].astype(np.float32)
             lit = from_depth if lit is None else np.where(missing[:, None], from_depth, lit)
-        brightness = blinn_phong(lit, np.asarray(depth, np.float32).ravel()[covered], light)
+        brightness = _blinn_phong(lit, np.asarray(depth, np.float32).ravel()[covered], light)
     elif mode == "depth-gradient":
         brightness = gradient_shading(depth, scale, light).ravel()[covered]
     elif mode == "depth":
-        brightness = depth_shading(depth).ravel()[covered]
+        brightness = _depth_shading(depth).ravel()[covered]
     else:
         raise InputError(f"unknown shading {mode!r}; choose {', '.join(SHADINGS)}", parameter="shading")
     brightness = np.asarray(brightness, np.float32)

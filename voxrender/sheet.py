@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["sheet", "render_sheet"]
 
 
 def sheet(rows, captions=None, gap=4, caption_height=16, background=(0, 0, 0), colour=(230, 230, 230)):

@@ -18,8 +18,6 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["View", "rotation_matrix", "angles_from_matrix", "angles_from_vpn", "vpn_from_angles",
-           "PRESETS", "fit_scale", "frame_together"]
 
 # Viewer positions for a stack read in DICOM patient order (LPS): x runs to the
 # patient's left, y to the back, z up to the head.  Image up is the head (or, seen

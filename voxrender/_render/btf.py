@@ -28,7 +28,6 @@ import numpy as np
 from ..segments import expand_runs
 from .geometry import paint_boxes
 
-__all__ = ["render_btf", "back_to_front", "slice_runs"]
 
 
 def back_to_front(n, direction):
@@ -41,7 +40,7 @@ def back_to_front(n, direction):
     return order[::-1] if direction > 0 else order
 
 
-def slice_runs(segments, z, view, clip=None):
+def _slice_runs(segments, z, view, clip=None):
     """``(rows, starts, ends)`` of slice ``z``, clipped when ``clip`` is given."""
     rows, starts, ends = segments.slice(z)
     if clip is not None and clip.active:
@@ -84,7 +83,7 @@ def render_btf(segments, view, progress=None, clip=None):
     stats = {"slices": 0, "rows": 0, "voxels_projected": 0, "pixel_writes": 0}
     order = back_to_front(segments.shape[0], direction[2])
     for z in (progress(order, len(order), "btf") if progress else order):
-        y, x = expand_runs(*slice_runs(segments, z, view, clip))
+        y, x = expand_runs(*_slice_runs(segments, z, view, clip))
         if not len(x):
             continue
         # Rows, and voxels within a row, from the farthest: the order a painter would paint them in.

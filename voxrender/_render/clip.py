@@ -15,7 +15,6 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["Clip"]
 
 
 @dataclass(frozen=True)

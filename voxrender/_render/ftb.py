@@ -36,7 +36,6 @@ from ..view import View
 from .btf import back_to_front
 from .geometry import box_rows, ray_box_entry, row_spans
 
-__all__ = ["ScreenPlan", "plan_screen", "initial_unlit", "render_ftb", "CASES"]
 
 CASES = tuple(range(1, 9))
 
@@ -96,7 +95,7 @@ class ScreenPlan:
         return zc + entry
 
 
-def plan_screen(segments, view):
+def _plan_screen(segments, view):
     """The front-to-back plan for ``view`` (its gamma is ignored: it turns the pre-image afterwards)."""
     flat = replace(view, gamma=0.0)
     matrix = flat.matrix
@@ -110,7 +109,7 @@ def plan_screen(segments, view):
                       y_order if outer_is_z else z_order, x_ascending, bool(x_ascending != (matrix[0, 0] >= 0)))
 
 
-def object_box(segments, clip=None):
+def _object_box(segments, clip=None):
     """``((x0, x1), (y0, y1), (z0, z1))`` inclusive: the bounding box of the object inside the clip limits."""
     (z0, z1), (y0, y1), (x0, x1) = segments.bounding_box()
     box = [[x0, x1], [y0, y1], [z0, z1]]
@@ -124,7 +123,7 @@ def object_box(segments, clip=None):
     return tuple(tuple(limits) for limits in box)
 
 
-def initial_unlit(plan, box):
+def _initial_unlit(plan, box):
     """The dynamic screen at the start: per scanline, the span of the bounding box's projection.
 
     Returns ``(lines, first, last)`` in walk coordinates, one unlit segment per scanline that has one.
@@ -312,13 +311,13 @@ def render_ftb(segments, view, progress=None, clip=None, items=False):
     >>> depth[1:3, 1:3].tolist(), stats["pixels_lit"], stats["cases"]["4"]
     ([[-1.0, -1.0], [-1.0, -1.0]], 4, 2)
     """
-    plan = plan_screen(segments, view)
+    plan = _plan_screen(segments, view)
     height, width = view.size
     stride = width + 2
     stats = new_stats()
     depth = np.full(height * width, np.inf)
     owner_image = np.full(height * width, -1, np.int64)
-    lines, first, last = initial_unlit(plan, object_box(segments, clip))
+    lines, first, last = _initial_unlit(plan, _object_box(segments, clip))
     lo, hi = lines * stride + first + 1, lines * stride + last + 1
     stats["unlit_segments_start"] = stats["unlit_segments_peak"] = len(lo)
 

@@ -15,7 +15,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["EPS", "Fragments", "reach", "ray_box_entry", "paint_boxes", "box_rows", "row_spans"]
 
 # Pixel centres that fall exactly on a face belong to the (closed) box.
 EPS = 1e-9

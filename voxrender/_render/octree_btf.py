@@ -25,7 +25,6 @@ from .. import octree
 from ..view import vpn_from_angles
 from .geometry import paint_boxes
 
-__all__ = ["render_octree_btf", "front_to_back_children", "visible_axes", "paint_faces", "region_octree"]
 
 
 def visible_axes(vpn):

@@ -37,7 +37,6 @@ from .. import octree
 from ..view import vpn_from_angles
 from .octree_btf import front_to_back_children, paint_faces, region_octree, visible_axes
 
-__all__ = ["render_octree_ftb"]
 
 
 def _behind(axes):

@@ -19,7 +19,6 @@ import numpy as np
 from ..view import View
 from .geometry import ray_box_entry
 
-__all__ = ["render_preimage", "preimage_view", "turn_items"]
 
 
 def preimage_view(view, supersample):
@@ -47,7 +46,7 @@ def preimage_view(view, supersample):
                 centre)
 
 
-def turn_items(owner, boxes, shape, view, pre_view):
+def _turn_items(owner, boxes, shape, view, pre_view):
     """Final depth image of ``view`` from a pre-image's item buffer (see the module docstring).
 
     ``owner`` is the ``(Hp, Wp)`` index of the box that lit each pre-image pixel (-1: none); ``boxes`` holds
@@ -109,5 +108,5 @@ def render_preimage(renderer, segments, view, supersample=2, progress=None, clip
     """
     pre_view = preimage_view(view, supersample)
     pre, stats, (owner, boxes) = renderer(segments, pre_view, progress=progress, clip=clip, items=True, **options)
-    depth = turn_items(owner, boxes, segments.shape, view, pre_view)
+    depth = _turn_items(owner, boxes, segments.shape, view, pre_view)
     return depth, dict(stats, preimage_size=list(pre_view.size), supersample=supersample)

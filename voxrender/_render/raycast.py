@@ -21,7 +21,6 @@ import numpy as np
 from ..lines import Stepper
 from .geometry import ray_box_entry
 
-__all__ = ["render_raycast", "CONNECTIVITIES", "proximity_band", "empty_space", "BLOCK"]
 
 CONNECTIVITIES = ("6", "26", "adaptive")
 

@@ -11,7 +11,6 @@ import numpy as np
 
 from . import geometry
 
-__all__ = ["render_btf_literal"]
 
 
 def render_btf_literal(segments, view, clip=None):

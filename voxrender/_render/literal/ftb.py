@@ -18,7 +18,6 @@ import numpy as np
 
 from . import geometry
 
-__all__ = ["render_ftb_literal", "Unlit"]
 
 
 class Unlit:

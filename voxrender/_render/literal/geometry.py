@@ -22,8 +22,6 @@ import math
 
 import numpy as np
 
-__all__ = ["EPS", "rotation", "pixel_centre", "to_image", "ray_entry", "box_pixels", "box_scanline_span",
-           "box_scanlines", "view_plane_normal", "clip_mask", "clip_run"]
 
 EPS = 1e-9
 

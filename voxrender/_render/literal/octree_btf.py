@@ -14,7 +14,6 @@ import numpy as np
 from ... import octree
 from . import geometry
 
-__all__ = ["render_octree_btf_literal", "literal_tree", "visible_faces", "children_front_to_back", "FaceScan"]
 
 
 def literal_tree(segments, view, clip=None, tree=None):

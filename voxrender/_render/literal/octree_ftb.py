@@ -31,7 +31,6 @@ import numpy as np
 from ... import octree
 from .octree_btf import FaceScan, children_front_to_back, literal_tree, visible_faces
 
-__all__ = ["render_octree_ftb_literal", "BlockingBitmap", "QUAD_TAB", "ind_tab"]
 
 W, B, G = 0, 1, 2
 

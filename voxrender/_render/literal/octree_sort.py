@@ -14,7 +14,6 @@ from ... import octree
 from . import geometry
 from .octree_btf import literal_tree
 
-__all__ = ["recode_literal", "render_octree_sort_literal", "render_zbuffer_literal"]
 
 
 def _axes_by_size(vpn):
