@@ -3,11 +3,16 @@
 import nibabel
 import nrrd
 import numpy as np
-
 from dicom_files import write_series
+
 from voxrender import orient
 
 SPACING = (0.8, 1.0, 1.25)      # canonical x, y, z in mm
+
+
+def random_stack(shape=(5, 6, 7), seed=0):
+    """Random ``uint16`` slices ``[z, y, x]`` (0 to 2999), for readers that keep the stored values."""
+    return np.random.default_rng(seed).integers(0, 3000, size=shape).astype(np.uint16)
 
 
 def phantom():

@@ -1,0 +1,144 @@
+"""voxrender.io.dicom: DICOM series, classic and enhanced."""
+
+import numpy as np
+import pytest
+from conftest import data_path
+from dicom_files import write_enhanced, write_series
+
+from voxrender import io
+from voxrender.errors import InputError
+
+
+def test_dicom_series_sorted_by_position_and_rescaled(tmp_path):
+    stored = np.random.default_rng(3).integers(0, 2000, size=(6, 4, 5))
+    write_series(tmp_path, stored, spacing=(0.5, 0.6, 2.0))
+    volume = io.read_volume(tmp_path)
+    assert volume.meta["format"] == "dicom" and volume.meta["sorted_by"] == "ImagePositionPatient"
+    assert np.array_equal(volume.values, stored - 1024)
+    assert volume.spacing == (0.5, 0.6, 2.0)
+    assert volume.meta["units"] == "HU"
+
+
+def test_dicom_falls_back_to_instance_number(tmp_path):
+    stored = np.random.default_rng(4).integers(0, 2000, size=(4, 3, 3))
+    write_series(tmp_path, stored, positions=False)
+    volume = io.read_volume(tmp_path)
+    assert volume.meta["sorted_by"] == "InstanceNumber"
+    assert np.array_equal(volume.values, stored - 1024)
+
+
+def test_dicom_fractional_rescale_gives_float(tmp_path):
+    stored = np.arange(2 * 3 * 3).reshape(2, 3, 3)
+    write_series(tmp_path, stored, slope=0.5, intercept=1.25)
+    values = io.read_volume(tmp_path).values
+    assert values.dtype == np.float32 and np.allclose(values, stored * 0.5 + 1.25)
+
+
+def test_two_series_need_a_choice(tmp_path):
+    write_series(tmp_path, np.zeros((2, 3, 3)), series_uid="1.2.3.1", names=["a1.dcm", "a2.dcm"])
+    write_series(tmp_path, np.ones((3, 3, 3)), series_uid="1.2.3.2", names=["b1.dcm", "b2.dcm", "b3.dcm"])
+    with pytest.raises(InputError, match="choose one by its UID") as info:
+        io.read_volume(tmp_path)
+    assert info.value.parameter == "series"
+    assert "1.2.3.1 (2 slices" in str(info.value) and "1.2.3.2 (3 slices" in str(info.value)
+    assert io.read_volume(tmp_path, series="1.2.3.2").shape == (3, 3, 3)
+    with pytest.raises(InputError, match="no series 9.9"):
+        io.read_volume(tmp_path, series="9.9")
+
+
+def test_truncated_dicom(tmp_path):
+    paths = write_series(tmp_path, np.zeros((3, 8, 8)))
+    paths[1].write_bytes(paths[1].read_bytes()[:-60])
+    with pytest.raises(InputError, match="DICOM file"):
+        io.read_volume(tmp_path)
+
+
+def test_corrupt_dicom_header(tmp_path):
+    paths = write_series(tmp_path, np.zeros((3, 8, 8)))
+    paths[0].write_bytes(b"\0" * 128 + b"DICM" + b"\xff" * 50)
+    with pytest.raises(InputError, match="DICOM file"):
+        io.read_volume(tmp_path)
+
+
+def test_one_dicom_file_points_to_its_folder(tmp_path):
+    paths = write_series(tmp_path, np.zeros((2, 4, 4)))
+    with pytest.raises(InputError, match="folder that holds the whole series"):
+        io.read_volume(paths[0])
+
+
+def test_dicom_in_nested_folders(tmp_path):
+    stored = np.random.default_rng(6).integers(0, 2000, size=(4, 5, 6))
+    write_series(tmp_path / "export" / "patient" / "study", stored)
+    (tmp_path / "export" / "README.txt").write_text("exported")
+    volume = io.read_volume(tmp_path / "export")
+    assert np.array_equal(volume.values, stored - 1024)
+
+
+@pytest.mark.parametrize("syntax", ["RLELossless", "JPEG2000Lossless"])
+def test_compressed_dicom(tmp_path, syntax):
+    import pydicom
+    from pydicom import uid
+
+    stored = np.random.default_rng(7).integers(0, 2000, size=(3, 64, 64))
+    for path in write_series(tmp_path, stored):
+        ds = pydicom.dcmread(path)
+        ds.compress(getattr(uid, syntax), ds.pixel_array.astype(np.int16))
+        ds.save_as(path)
+    assert np.array_equal(io.read_volume(tmp_path).values, stored - 1024)
+
+
+def test_dicom_positions_without_orientation(tmp_path):
+    import pydicom
+
+    stored = np.random.default_rng(8).integers(0, 2000, size=(4, 3, 3))
+    for path in write_series(tmp_path, stored):
+        ds = pydicom.dcmread(path)
+        del ds.ImageOrientationPatient
+        ds.save_as(path)
+    volume = io.read_volume(tmp_path)
+    assert volume.meta["sorted_by"] == "ImagePositionPatient" and np.array_equal(volume.values, stored - 1024)
+
+
+def test_vhf_head_dicom():
+    volume = io.read_volume(data_path("vhf_head"))
+    assert volume.shape == (234, 512, 512) and volume.spacing == (1.0, 1.0, 1.0)
+    assert volume.meta["units"] == "HU" and volume.values.dtype == np.int16
+    assert volume.values.min() <= -1000 and volume.values.max() > 1000
+    # Slices run from the neck up: the top slice holds less bone than the middle ones.
+    bone = (volume.values >= 300).sum(axis=(1, 2))
+    assert bone[-1] < bone[len(bone) // 2]
+
+
+def test_enhanced_ct_gives_the_same_volume_as_its_classic_series(tmp_path):
+    stored = np.random.default_rng(5).integers(0, 2000, (6, 7, 8)).astype(np.int16)
+    write_series(tmp_path / "classic", stored, intercept=-1024)
+    (tmp_path / "enhanced").mkdir()
+    write_enhanced(tmp_path / "enhanced" / "ct.dcm", stored, intercept=-1024)
+    classic, enhanced = io.read_volume(tmp_path / "classic"), io.read_volume(tmp_path / "enhanced")
+    assert np.array_equal(classic.values, enhanced.values) and classic.spacing == enhanced.spacing
+    assert enhanced.meta["units"] == "HU" and enhanced.meta["sorted_by"] == "per-frame ImagePositionPatient"
+
+
+def test_a_folder_with_a_classic_and_an_enhanced_series_lists_both(tmp_path):
+    stored = np.zeros((3, 4, 4), np.int16)
+    write_series(tmp_path, stored, series_uid="1.2.3.7")
+    write_enhanced(tmp_path / "enhanced.dcm", stored, series_uid="1.2.3.8")
+    with pytest.raises(InputError, match="2 DICOM series") as info:
+        io.read_volume(tmp_path)
+    assert "1.2.3.7" in str(info.value) and "1.2.3.8" in str(info.value)
+    assert io.read_volume(tmp_path, series="1.2.3.8").shape == (3, 4, 4)
+
+
+def test_an_enhanced_dicom_without_positions_is_refused(tmp_path):
+    write_enhanced(tmp_path / "ct.dcm", np.zeros((3, 4, 4), np.int16), positions=False)
+    with pytest.raises(InputError, match="frames lack ImagePositionPatient"):
+        io.read_volume(tmp_path)
+
+
+def test_one_dicom_file_is_refused_whatever_names_it(tmp_path):
+    paths = write_series(tmp_path, np.zeros((2, 4, 4)))
+    bare = paths[0].rename(tmp_path / "slice")                  # no suffix: its magic bytes say DICOM
+    assert io.detect_format(bare) == "dicom"
+    for path, format in [(bare, "auto"), (paths[1], "dicom")]:
+        with pytest.raises(InputError, match="one DICOM file; give the folder that holds the whole series"):
+            io.read_volume(path, format=format)

@@ -1,0 +1,62 @@
+"""voxrender.io.metaimage: MetaImage .mhd and .mha."""
+
+import zlib
+
+import numpy as np
+import pytest
+from conftest import data_path
+
+from voxrender import io
+from voxrender.errors import InputError
+
+
+def _write_mhd(path, values, compressed=False, local=False, msb=False):
+    dtype = values.dtype.newbyteorder(">" if msb else "<")
+    payload = values.astype(dtype).tobytes()
+    if compressed:
+        payload = zlib.compress(payload)
+    nz, ny, nx = values.shape
+    header = (f"ObjectType = Image\nNDims = 3\nDimSize = {nx} {ny} {nz}\nElementSpacing = 0.5 0.7 2\n"
+              f"ElementType = MET_SHORT\nElementByteOrderMSB = {msb}\nCompressedData = {compressed}\n")
+    if compressed:
+        header += f"CompressedDataSize = {len(payload)}\n"
+    if local:
+        path.write_bytes((header + "ElementDataFile = LOCAL\n").encode() + payload)
+    else:
+        path.with_suffix(".raw").write_bytes(payload)
+        path.write_text(header + f"ElementDataFile = {path.with_suffix('.raw').name}\n")
+
+
+@pytest.mark.parametrize("compressed,local,msb", [(False, False, False), (True, False, False),
+                                                  (False, True, True), (True, True, False)])
+def test_metaimage(tmp_path, compressed, local, msb):
+    values = np.random.default_rng(5).integers(-1000, 1000, size=(3, 4, 5)).astype(np.int16)
+    path = tmp_path / ("v.mha" if local else "v.mhd")
+    _write_mhd(path, values, compressed, local, msb)
+    volume = io.read_volume(path)
+    assert np.array_equal(volume.values, values) and volume.spacing == (0.5, 0.7, 2.0)
+
+
+def test_truncated_metaimage(tmp_path):
+    values = np.zeros((3, 4, 5), np.int16)
+    _write_mhd(tmp_path / "v.mhd", values)
+    (tmp_path / "v.raw").write_bytes(b"\0" * 10)
+    with pytest.raises(InputError, match="truncated"):
+        io.read_volume(tmp_path / "v.mhd")
+
+
+def test_headmr_metaimage():
+    volume = io.read_volume(data_path("headmr") / "HeadMRVolume.mhd")
+    assert volume.shape == (42, 62, 48) and volume.spacing == (4.0, 4.0, 4.0)
+    assert volume.values.dtype == np.uint8
+
+
+def test_a_folder_with_one_metaimage_reads_it_and_with_two_lists_them(tmp_path):
+    values = np.arange(60, dtype=np.int16).reshape(3, 4, 5)
+    _write_mhd(tmp_path / "a.mhd", values)
+    assert io.detect_format(tmp_path) == "metaimage"
+    volume = io.read_volume(tmp_path)
+    assert np.array_equal(volume.values, values) and volume.meta["source"] == str(tmp_path / "a.mhd")
+    _write_mhd(tmp_path / "b.mha", values, local=True)
+    with pytest.raises(InputError, match=r"holds 2 MetaImage volume files \(a.mhd, b.mha\), not slices; give one"):
+        io.read_volume(tmp_path)

@@ -1,0 +1,96 @@
+"""voxrender.io.nifti: NIfTI-1 and -2, and folders of NIfTI files."""
+
+import numpy as np
+import pytest
+
+from voxrender import io
+from voxrender.errors import InputError
+
+
+def test_nifti_scaling_and_4d_frames(tmp_path):
+    import nibabel
+
+    data = np.arange(4 * 5 * 6 * 2, dtype=np.int16).reshape(6, 5, 4, 2)      # [i, j, k, t]
+    image = nibabel.Nifti1Image(data, np.diag([2.0, 3.0, 4.0, 1.0]))
+    image.header.set_slope_inter(0.5, 10)
+    nibabel.save(image, str(tmp_path / "four.nii.gz"))
+    with pytest.raises(InputError, match="holds 2 volumes") as info:
+        io.read_volume(tmp_path / "four.nii.gz")
+    assert info.value.parameter == "frame"
+    with pytest.raises(InputError, match="is not a volume") as info:
+        io.read_volume(tmp_path / "four.nii.gz", frame=2)
+    volume = io.read_volume(tmp_path / "four.nii.gz", frame=1, reorient=False)
+    assert volume.shape == (4, 5, 6) and volume.spacing == (2.0, 3.0, 4.0)
+    assert np.allclose(volume.values, data[..., 1].transpose(2, 1, 0) * 0.5 + 10)
+    assert io.read_volume(tmp_path / "four.nii.gz", frame=1).meta["reoriented"] == "RAS -> LPS: flipped x, y"
+
+
+def test_nifti_with_a_bad_pixdim_or_truncated(tmp_path):
+    import nibabel
+
+    nibabel.save(nibabel.Nifti1Image(np.zeros((4, 4, 4), np.int16), np.eye(4)), str(tmp_path / "flat.nii"))
+    with open(tmp_path / "flat.nii", "r+b") as f:           # nibabel mends a zero pixdim when it saves an image,
+        header = nibabel.Nifti1Header.from_fileobj(f)      # so the header is written back on its own
+        header["pixdim"][2] = 0
+        f.seek(0)
+        header.write_to(f)
+    with pytest.raises(InputError, match="pixdim"):
+        io.read_volume(tmp_path / "flat.nii")
+    nibabel.save(nibabel.Nifti1Image(np.random.default_rng(0).random((20, 20, 20)), np.eye(4)),
+                 str(tmp_path / "whole.nii.gz"))
+    (tmp_path / "cut.nii.gz").write_bytes((tmp_path / "whole.nii.gz").read_bytes()[:4000])
+    with pytest.raises(InputError, match="cut.nii.gz"):
+        io.read_volume(tmp_path / "cut.nii.gz")
+
+
+def test_nifti_without_sform_or_qform_warns(tmp_path):
+    import nibabel
+
+    image = nibabel.Nifti1Image(np.zeros((3, 4, 5), np.int16), None)
+    image.header.set_sform(None, code=0)
+    image.header.set_qform(None, code=0)
+    nibabel.save(image, str(tmp_path / "bare.nii"))
+    with pytest.warns(UserWarning, match="neither sform nor qform"):
+        volume = io.read_volume(tmp_path / "bare.nii")
+    assert volume.shape == (5, 4, 3) and volume.meta["orientation_from"].startswith("unknown")
+
+
+def test_nifti_2(tmp_path):
+    import nibabel
+
+    data = np.random.default_rng(2).integers(0, 9, (5, 4, 3)).astype(np.int16)       # [i, j, k]
+    nibabel.save(nibabel.Nifti2Image(data, np.diag([-1.0, -1.0, 2.0, 1.0])), str(tmp_path / "two.nii"))
+    volume = io.read_volume(tmp_path / "two.nii")                  # stored LPS (negative x, y in RAS): as stored
+    assert np.array_equal(volume.values, data.transpose(2, 1, 0)) and volume.spacing == (1.0, 1.0, 2.0)
+
+
+@pytest.mark.parametrize("name", ["three.nii.gz", "three.nrrd"])
+def test_a_frame_of_a_3d_file_is_refused(tmp_path, name):
+    import nibabel
+    import nrrd
+
+    data = np.zeros((3, 4, 5), np.int16)
+    if name.endswith(".nrrd"):
+        nrrd.write(str(tmp_path / name), data)
+    else:
+        nibabel.save(nibabel.Nifti1Image(data, np.eye(4)), str(tmp_path / name))
+    with pytest.raises(InputError, match="holds one volume; a frame number applies to 4-D files") as info:
+        io.read_volume(tmp_path / name, frame=0)
+    assert info.value.parameter == "frame"
+
+
+def test_a_folder_of_nifti_files_says_what_it_holds(tmp_path):
+    """A segmentation's folder, one file per organ (TotalSegmentator's segmentations/), is not a stack of slices."""
+    import nibabel
+
+    folder = tmp_path / "segmentations"
+    folder.mkdir()
+    for organ in ("spleen", "liver", "kidney_left", "stomach"):
+        nibabel.save(nibabel.Nifti1Image(np.zeros((4, 4, 4), np.uint8), np.eye(4)), str(folder / f"{organ}.nii.gz"))
+    (folder / "statistics.json").write_text("{}")
+    assert io.detect_format(folder) == "nifti"
+    with pytest.raises(InputError, match=r"segmentations holds 4 NIfTI volume files \(kidney_left.nii.gz, "
+                                         r"liver.nii.gz, spleen.nii.gz, ...\), not slices; give one of them"):
+        io.read_volume(folder)
+    (folder / "scan.raw").write_bytes(b"\0" * 64)          # something else beside them: not a folder of volumes
+    assert not io.READERS["nifti"].sniff(folder)

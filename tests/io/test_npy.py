@@ -1,0 +1,23 @@
+"""voxrender.io.npy: 3-D NumPy arrays."""
+
+import numpy as np
+import pytest
+from formats import random_stack
+
+from voxrender import io
+from voxrender.errors import InputError
+
+
+def test_npy(tmp_path):
+    stack = random_stack()
+    np.save(tmp_path / "v.npy", stack)
+    assert np.array_equal(io.read_volume(tmp_path / "v.npy").values, stack)
+    np.save(tmp_path / "flat.npy", stack[0])
+    with pytest.raises(InputError, match="3-D"):
+        io.read_volume(tmp_path / "flat.npy")
+
+
+def test_booleans_become_zero_and_one(tmp_path):
+    np.save(tmp_path / "mask.npy", random_stack() > 1500)
+    values = io.read_volume(tmp_path / "mask.npy").values
+    assert values.dtype == np.uint8 and set(np.unique(values)) == {0, 1}

@@ -1,0 +1,40 @@
+"""voxrender.io.tiff: multi-page TIFF."""
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+from formats import random_stack
+
+from voxrender import io
+from voxrender.errors import InputError
+
+
+def test_multipage_tiff(tmp_path):
+    stack = random_stack()
+    iio.imwrite(tmp_path / "v.tif", stack)
+    volume = io.read_volume(tmp_path / "v.tif")
+    assert np.array_equal(volume.values, stack) and volume.meta["format"] == "tiff"
+    iio.imwrite(tmp_path / "page.tif", stack[0])
+    with pytest.raises(InputError, match="single 2-D image"):
+        io.read_volume(tmp_path / "page.tif")
+
+
+def test_tiff_spacing_from_imagej_metadata(tmp_path):
+    import tifffile
+
+    stack = np.zeros((4, 5, 6), np.uint16)
+    tifffile.imwrite(tmp_path / "stack.tif", stack, imagej=True, resolution=(1 / 0.25, 1 / 0.5),
+                     metadata={"spacing": 2.0, "unit": "mm"})
+    volume = io.read_volume(tmp_path / "stack.tif")
+    assert volume.spacing == (0.25, 0.5, 2.0) and volume.meta["spacing_from"] == "ImageJ metadata"
+
+
+def test_ome_tiff(tmp_path):
+    import tifffile
+
+    stack = np.zeros((3, 4, 5), np.uint16)
+    tifffile.imwrite(tmp_path / "ome.ome.tif", stack, ome=True,
+                     metadata={"axes": "ZYX", "PhysicalSizeX": 0.5, "PhysicalSizeY": 0.25, "PhysicalSizeZ": 2.0,
+                               "PhysicalSizeXUnit": "mm", "PhysicalSizeYUnit": "mm", "PhysicalSizeZUnit": "mm"})
+    volume = io.read_volume(tmp_path / "ome.ome.tif")
+    assert volume.spacing == (0.5, 0.25, 2.0) and volume.meta["spacing_from"] == "OME metadata"

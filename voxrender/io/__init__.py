@@ -1,0 +1,184 @@
+"""Reading slice stacks into a :class:`Volume`: one module per format, each with its :class:`Reader` record.
+
+Supported inputs (detected from the path, or named with ``format=``), in the order detection tries them; each is
+read by the module of its name (``voxrender.io.dicom`` ...):
+
+========== ==========================================================================
+format     what
+========== ==========================================================================
+dicom      a folder holding a DICOM series, ordered by ImagePositionPatient
+images     a folder of 2-D images (PNG, TIFF, BMP, JPEG), in natural order of names
+metaimage  a MetaImage ``.mhd`` (header + raw file) or ``.mha`` (one file), raw or zlib
+raw        headerless slices: a folder of files or one file, with ``raw=RawLayout(...)``
+npy        a 3-D NumPy ``.npy`` array ``[z, y, x]``
+tiff       a multi-page TIFF, one page a slice (spacing from ImageJ or OME metadata)
+nifti      NIfTI-1 or -2, ``.nii`` or ``.nii.gz`` (nibabel), scaled by scl_slope/scl_inter
+nrrd       NRRD, ``.nrrd`` or ``.nhdr`` with a detached data file (pynrrd), raw, gzip or bzip2
+========== ==========================================================================
+
+``voxrender.io._shared`` holds what they share: :class:`Volume`, :class:`Reader`, :class:`RawLayout`, the listing
+of folders and the filling of stacks.  A folder of NIfTI or NRRD files (a segmentation's one file per organ) is
+recognised and refused with what it holds.
+
+Every reader also returns, when its header says it, the volume's *direction* (see :mod:`voxrender.orient`);
+:func:`read_volume` then brings the volume to the canonical patient frame (LPS) by flips and permutations.
+Readers stream: the volume array is allocated once and filled slice by slice.
+
+Adding a format is one module with its reading function
+and its ``READER`` record, one line in ``READERS`` and one test file (see ``docs/design.md``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .. import orient
+from ..errors import InputError
+from . import dicom, images, metaimage, nifti, npy, nrrd, raw, tiff
+from ._shared import RawLayout, Reader, Volume, check_spacing, files_in, identity_progress, natural_key, some_names
+
+__all__ = ["Volume", "RawLayout", "Reader", "READERS", "FORMATS", "read_volume", "detect_format", "natural_key",
+           "check_spacing"]
+
+# The formats by name, in the order ``format="auto"`` tries them: a folder of DICOM files before one of images (an
+# export may hold a preview picture beside its slices), folders of slices before folders of volume files.
+READERS = {
+    "dicom": dicom.READER,
+    "images": images.READER,
+    "metaimage": metaimage.READER,
+    "raw": raw.READER,
+    "npy": npy.READER,
+    "tiff": tiff.READER,
+    "nifti": nifti.READER,
+    "nrrd": nrrd.READER,
+}
+FORMATS = ("auto", *READERS)
+
+
+def detect_format(path, raw=None):
+    """Name the format of ``path``: the first reader in ``READERS`` whose suffixes name the file, else the first
+    whose ``sniff`` recognises it (a folder by what it holds, a file by its magic bytes).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> np.save(folder / "v.npy", np.zeros((2, 3, 4), np.int16))
+    >>> detect_format(folder / "v.npy")
+    'npy'
+    """
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"no such file or folder: {path}")
+    if raw is not None:
+        return "raw"
+    if path.is_dir() and next(path.iterdir(), None) is None:
+        raise InputError(f"{path} is an empty folder; give a folder of slices")
+    if path.is_file():
+        for format, reader in READERS.items():
+            if path.name.lower().endswith(reader.suffixes):
+                return format
+    for format, reader in READERS.items():
+        if reader.sniff is not None and reader.sniff(path):
+            return format
+    if path.is_file():
+        raise InputError(f"cannot tell the format of {path}; give a folder of slices, .mhd/.mha, .nii/.nii.gz, "
+                         ".nrrd/.nhdr, .npy, a multi-page .tif, or the layout of headerless slices", parameter="format")
+    files = files_in(path)
+    raise InputError(f"{path} holds {len(files)} file{'s' * (len(files) > 1)} ({some_names(files)}) but no DICOM "
+                     "files, images (PNG, TIFF, BMP, JPEG) or volume files; for headerless slices give their layout",
+                     parameter="raw")
+
+
+def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, frame=None, orientation=None,
+                reorient=True, progress=None):
+    """Read a slice stack into a :class:`Volume`, in the canonical patient frame.
+
+    Parameters
+    ----------
+    path : str or Path
+        A folder of slices or a volume file.
+    format : str
+        ``"auto"`` (detect it) or a name in ``READERS``.
+    raw : RawLayout, optional
+        The layout of headerless slices (implies ``format="raw"``).
+    spacing : sequence of 3 floats, optional
+        Voxel spacing (x, y, z) in mm; overrides what the files say.
+    series : str, optional
+        SeriesInstanceUID to read when a DICOM folder holds several series.
+    frame : int, optional
+        The volume to read from a 4-D file (NIfTI, NRRD).
+    orientation : str, optional
+        An orientation code (``"RAS"``, ``"LPI"`` ...) for inputs whose header says none, or to override it.
+    reorient : bool
+        Bring the volume to the canonical patient frame (x toward L, y toward P, z toward S) by flips and
+        permutations, when its orientation is known.  ``False`` keeps the stored order.
+    progress : callable, optional
+        ``progress(iterable, length, label)`` wraps the slice loop (a progress bar).
+
+    Returns
+    -------
+    Volume
+        ``meta`` tells the format, where the spacing and orientation came from, and what reorienting did.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> np.save(folder / "v.npy", np.arange(24, dtype=np.int16).reshape(2, 3, 4))
+    >>> read_volume(folder / "v.npy").shape
+    (2, 3, 4)
+    >>> read_volume(folder / "v.npy", orientation="RAS").meta["reoriented"]
+    'RAS -> LPS: flipped x, y'
+    """
+    path = Path(path)
+    progress = progress or identity_progress
+    if format != "auto" and format not in READERS:
+        raise InputError(f"unknown format {format!r}; choose one of auto, {', '.join(READERS)}", parameter="format")
+    if format == "auto":
+        format = detect_format(path, raw)
+    elif not path.exists():
+        raise InputError(f"no such file or folder: {path}")
+    reader = READERS[format]
+    given = {"raw": raw, "series": series, "frame": frame}
+    for name, value in given.items():
+        if value is not None and name not in reader.options:
+            raise InputError(f"{format} input takes no {name}", parameter=name)
+    volume = reader.function(path, progress, **{name: given[name] for name in reader.options})
+    volume.meta.setdefault("format", format)
+    volume.meta.setdefault("source", str(path))
+    if volume.values.ndim != 3 or min(volume.values.shape) < 1:
+        raise InputError(f"{path} does not hold a 3-D stack (shape {volume.values.shape})")
+    if orientation is not None:
+        volume.direction = orient.direction_of(orientation)
+        volume.meta["orientation_from"] = "given"
+    if volume.direction is None:
+        volume.meta.setdefault("orientation_from", "unknown: the input does not say (stored order kept)")
+    else:
+        volume.meta["orientation"] = orient.code_of(volume.direction)
+        volume.meta["affine"] = _affine(volume.direction, volume.spacing, volume.meta.get("origin")).tolist()
+        if reorient:
+            volume.values, volume.spacing, volume.direction, volume.meta["reoriented"] = orient.to_canonical(
+                volume.values, volume.spacing, volume.direction, volume.meta.get("orientation_from", "the header"))
+    if spacing is not None:
+        volume.spacing = check_spacing(spacing)
+        volume.meta["spacing_from"] = "given"
+    return volume
+
+
+def _affine(direction, spacing, origin=None):
+    """The 4 x 4 voxel (x, y, z) -> patient (LPS, mm) matrix of the stored volume (origin 0 when unknown)."""
+    affine = np.eye(4)
+    affine[:3, :3] = np.asarray(direction, dtype=float) * np.asarray(spacing, dtype=float)[None, :]
+    affine[:3, 3] = origin if origin is not None else 0.0
+    return np.round(affine, 6)
+
+
+def _affine(direction, spacing, origin=None):
+    """The 4 x 4 voxel (x, y, z) -> patient (LPS, mm) matrix of the stored volume (origin 0 when unknown)."""
+    affine = np.eye(4)
+    affine[:3, :3] = np.asarray(direction, dtype=float) * np.asarray(spacing, dtype=float)[None, :]
+    affine[:3, 3] = origin if origin is not None else 0.0
+    return np.round(affine, 6)

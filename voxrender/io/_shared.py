@@ -1,0 +1,209 @@
+"""What the readers share: the :class:`Volume` they return, the :class:`Reader` record that describes each, and
+the listing of folders, the filling of stacks and the checks they have in common.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+
+# Files that sit beside slices or volume files without being either.
+NOTE_SUFFIXES = {".txt", ".md", ".json", ".csv", ".xml", ".ini", ".py"}
+
+
+@dataclass
+class Volume:
+    """A stack of slices: ``values[z, y, x]`` with voxel ``spacing`` (x, y, z) in mm.
+
+    ``direction`` (3 x 3, or ``None`` when the input does not say) holds in column ``k`` the patient (LPS)
+    direction along which voxel axis ``k`` (x, y, z) grows; see :mod:`voxrender.orient`.
+
+    Examples
+    --------
+    >>> v = Volume(np.zeros((3, 4, 5), np.int16), (0.5, 0.5, 2.0))
+    >>> v.shape
+    (3, 4, 5)
+    """
+
+    values: np.ndarray
+    spacing: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    meta: dict = field(default_factory=dict)
+    direction: np.ndarray | None = None
+
+    @property
+    def shape(self):
+        return self.values.shape
+
+
+@dataclass(frozen=True)
+class Reader:
+    """One input format: its reading function and how to recognise its files.
+
+    Parameters
+    ----------
+    function : callable
+        ``function(path, progress, **options) -> Volume``.
+    suffixes : tuple of str
+        File name endings (lower case) that mean this format when ``format="auto"``.
+    options : tuple of str
+        The keyword options of :func:`~voxrender.io.read_volume` it takes (``"raw"``, ``"series"``, ``"frame"``).
+    sniff : callable, optional
+        ``sniff(path) -> bool``: whether ``path`` is of this format although no suffix says so, from what a folder
+        holds or a file's magic bytes.  ``format="auto"`` asks it after every reader's suffixes.
+    """
+
+    function: Callable
+    suffixes: tuple = ()
+    options: tuple = ()
+    sniff: Callable | None = None
+
+
+@dataclass(frozen=True)
+class RawLayout:
+    """How headerless slices are laid out: ``width`` x ``height`` values of ``dtype`` (with its byte order).
+
+    >>> RawLayout(64, 64, np.dtype("<u2")).slice_bytes
+    8192
+    """
+
+    width: int
+    height: int
+    dtype: np.dtype
+
+    def __post_init__(self):
+        if int(self.width) < 1 or int(self.height) < 1:
+            raise InputError(f"width and height must be positive, not {self.width}x{self.height}", parameter="raw")
+        if np.dtype(self.dtype).kind not in "uif":
+            raise InputError(f"dtype {np.dtype(self.dtype).name!r} is not numeric", parameter="raw")
+
+    @property
+    def slice_bytes(self):
+        return int(self.width) * int(self.height) * np.dtype(self.dtype).itemsize
+
+
+def natural_key(name):
+    """Sort key that orders ``quarter.2`` before ``quarter.10``.
+
+    >>> sorted(["s10.png", "s2.png", "s1.png"], key=natural_key)
+    ['s1.png', 's2.png', 's10.png']
+    """
+    return [(0, int(part), "") if part.isdigit() else (1, 0, part.lower())
+            for part in re.split(r"(\d+)", str(name)) if part]
+
+
+def identity_progress(iterable, length=None, label=None):
+    return iterable
+
+
+def check_spacing(spacing, source=None):
+    """``spacing`` as three positive floats (x, y, z) in mm; ``source`` names the file it came from, if any.
+
+    >>> check_spacing([1, 1, 2.5])
+    (1.0, 1.0, 2.5)
+    """
+    where = f"{source}: " if source else ""
+    try:
+        values = tuple(float(s) for s in spacing)
+    except (TypeError, ValueError):
+        values = ()
+    if len(values) != 3 or not all(np.isfinite(v) and v > 0 for v in values):
+        raise InputError(f"{where}spacing must be three positive numbers x, y, z in mm, not {spacing}",
+                         parameter=None if source else "spacing")
+    return values
+
+
+def listed(folder):
+    """The files in ``folder`` (hidden ones left out), in natural order of names."""
+    return sorted((p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".")),
+                  key=lambda p: natural_key(p.name))
+
+
+def files_in(folder):
+    """The files in ``folder``, for a reader: an empty folder is bad input."""
+    files = listed(folder)
+    if not files:
+        raise InputError(f"{folder} is an empty folder; give a folder of slices")
+    return files
+
+
+def some_names(files, count=3):
+    """The first few names of ``files``, for a message.
+
+    >>> from pathlib import Path
+    >>> some_names([Path("a.nii.gz"), Path("b.nii.gz"), Path("c.nii.gz"), Path("d.nii.gz")])
+    'a.nii.gz, b.nii.gz, c.nii.gz, ...'
+    """
+    return ", ".join([f.name for f in files[:count]] + ["..."] * (len(files) > count))
+
+
+def volume_files(folder, suffixes):
+    """The files of ``folder`` whose names end in ``suffixes`` when, besides notes, they are all it holds (a folder of
+    volume files, such as a segmentation's one file per organ); otherwise an empty list.
+    """
+    files = listed(folder)
+    found = [f for f in files if f.name.lower().endswith(suffixes)]
+    return found if all(f in found or f.suffix.lower() in NOTE_SUFFIXES for f in files) else []
+
+
+def folder_of_volumes(folder, kind, suffixes):
+    """The error for a folder given where one ``kind`` volume file (named with ``suffixes``) was wanted."""
+    files = [f for f in files_in(folder) if f.name.lower().endswith(suffixes)]
+    if not files:
+        return InputError(f"{folder} is a folder without {kind} files; give a {kind} file")
+    return InputError(f"{folder} holds {len(files)} {kind} volume file{'s' * (len(files) > 1)} ({some_names(files)}), "
+                      "not slices; give one of them (a folder of label volumes is not read as one label map yet)")
+
+
+def first_line(exc):
+    """The first line of an exception's message (a library's messages can run to many lines), for ours."""
+    text = str(exc).strip().splitlines()
+    return (text[0] if text else type(exc).__name__)[:200]
+
+
+def to_grey(image, name):
+    """A 2-D slice from an image file; colour images become luminance in their own units."""
+    if image.ndim == 3 and image.shape[-1] in (3, 4):
+        rgb = image[..., :3]
+        if np.all(rgb == rgb[..., :1]):
+            return rgb[..., 0]
+        return (rgb @ np.array([0.2125, 0.7154, 0.0721])).astype(np.float32)
+    if image.ndim != 2:
+        raise InputError(f"{name} is not a 2-D image (shape {image.shape}); slices must be single images")
+    return image
+
+
+def fill_stack(items, read_slice, label, progress):
+    """Allocate the volume from the first slice, then fill it slice by slice."""
+    volume = None
+    for z, item in enumerate(progress(items, len(items), label)):
+        data, name = read_slice(item)
+        if volume is None:
+            volume = np.empty((len(items),) + data.shape, dtype=data.dtype)
+            first = name
+        if data.shape != volume.shape[1:]:
+            raise InputError(f"slice {name} is {data.shape[1]}x{data.shape[0]} but {first} is "
+                             f"{volume.shape[2]}x{volume.shape[1]}; all slices must have the same size")
+        if np.can_cast(data.dtype, volume.dtype, "safe"):
+            volume[z] = data
+        else:  # a later slice needs a wider type: widen once, keep going
+            volume = volume.astype(np.result_type(volume.dtype, data.dtype))
+            volume[z] = data
+    return volume
+
+
+def check_frame(path, frame, count=None):
+    """Check the ``frame`` asked of a 4-D file of ``count`` volumes (``None``: a 3-D file, which takes none)."""
+    if count is None:
+        if frame is not None:
+            raise InputError(f"{path} holds one volume; a frame number applies to 4-D files", parameter="frame")
+    elif frame is None:
+        raise InputError(f"{path} holds {count} volumes (4-D); choose one with a frame number 0 to {count - 1}",
+                         parameter="frame")
+    elif not 0 <= frame < count:
+        raise InputError(f"{frame} is not a volume of {path}, which holds {count} (0 to {count - 1})",
+                         parameter="frame")

@@ -1,0 +1,285 @@
+"""A DICOM series: a folder of slice files (or one multi-frame file) ordered by ImagePositionPatient (pydicom).
+
+The folder may hold several series (one is chosen by its SeriesInstanceUID) and nest its files in subfolders, as
+exports do.  Classic slices are sorted along their normal; enhanced CT and MR place their frames by functional
+groups, RT dose grids by GridFrameOffsetVector.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from ..errors import InputError
+from ._shared import Reader, Volume, fill_stack, first_line, natural_key, to_grey
+
+SUFFIXES = (".dcm", ".dicom", ".ima")
+def _dicom_files(folder):
+    """DICOM files in ``folder``; when it holds none itself, those anywhere below it (exports nest them)."""
+    files = [p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".") and _is_dicom(p)]
+    if not files:
+        files = [p for p in folder.rglob("*") if p.is_file() and not any(part.startswith(".") for part in
+                                                                            p.relative_to(folder).parts)
+                 and _is_dicom(p)]
+    return sorted((p for p in files if p.name.upper() != "DICOMDIR"), key=lambda p: natural_key(str(p)))
+
+
+def _is_dicom(path):
+    """A DICOM file, by its suffix or its magic bytes."""
+    if path.suffix.lower() in SUFFIXES:
+        return True
+    try:
+        with open(path, "rb") as f:
+            f.seek(128)
+            return f.read(4) == b"DICM"
+    except OSError:
+        return False
+
+
+def read_dicom(folder, progress, series=None):
+    """Read the DICOM series in ``folder`` (the one whose SeriesInstanceUID is ``series``, when it holds several)."""
+    import pydicom
+    from pydicom.errors import InvalidDicomError
+
+    if folder.is_file():
+        raise InputError(f"{folder} is one DICOM file; give the folder that holds the whole series")
+    files = _dicom_files(folder)
+    if not files:
+        raise InputError(f"{folder} holds no DICOM files")
+    headers = []
+    for f in progress(files, len(files), "reading DICOM headers"):
+        try:
+            try:
+                ds = pydicom.dcmread(f, stop_before_pixels=True)
+            except InvalidDicomError:               # no file meta header: older files, read as a bare data set
+                ds = pydicom.dcmread(f, stop_before_pixels=True, force=True)
+        except (InvalidDicomError, OSError, EOFError, ValueError, TypeError, KeyError, AttributeError) as exc:
+            raise InputError(f"cannot read DICOM file {f}: {first_line(exc)}") from None
+        missing = [key for key in ("Rows", "Columns") if key not in ds]
+        if missing:
+            kind = str(getattr(ds, "Modality", "") or getattr(ds, "SOPClassUID", "")) or "unknown"
+            raise InputError(f"DICOM file {f} holds no image (no {', '.join(missing)}; modality or class: {kind}); "
+                             "give a folder of image slices")
+        headers.append((f, ds))
+    groups = {}
+    for f, ds in headers:
+        groups.setdefault(str(getattr(ds, "SeriesInstanceUID", "(no SeriesInstanceUID)")), []).append((f, ds))
+    if series is not None:
+        if series not in groups:
+            raise InputError(f"no series {series} in {folder}; it holds {_list_series(groups)}", parameter="series")
+        chosen = groups[series]
+    elif len(groups) > 1:
+        raise InputError(f"{folder} holds {len(groups)} DICOM series; choose one by its UID: "
+                         f"{_list_series(groups)}", parameter="series")
+    else:
+        chosen = next(iter(groups.values()))
+    if any(_frames(ds) > 1 for _, ds in chosen):
+        if len(chosen) > 1:
+            raise InputError(f"the series in {folder} mixes multi-frame and single-frame files; keep one kind")
+        return _read_multiframe(chosen[0][0])
+    try:
+        chosen, spacing_z, sorted_by, direction = _sort_dicom(chosen)
+    except (ValueError, TypeError) as exc:       # a header value that is not what its type says (e.g. IS "1A")
+        raise InputError(f"{folder}: a DICOM header value is invalid ({first_line(exc)}); the files are damaged") \
+            from None
+    first = chosen[0][1]
+    for f, ds in chosen:
+        if (getattr(ds, "Rows", None), getattr(ds, "Columns", None)) != (first.Rows, first.Columns):
+            raise InputError(f"slice {f.name} is {ds.Columns}x{ds.Rows} but {chosen[0][0].name} is "
+                             f"{first.Columns}x{first.Rows}; all slices must have the same size")
+    if "PixelSpacing" not in first:
+        warnings.warn("the DICOM series has no PixelSpacing; using 1 mm (give the spacing if that is wrong)",
+                      stacklevel=2)
+    pixel = [float(v) for v in getattr(first, "PixelSpacing", [1.0, 1.0])]
+
+    def read(item):
+        f, _ = item
+        ds, data = _dicom_pixels(f)
+        return _rescale(to_grey(data, f.name), ds), f.name
+
+    values = fill_stack(chosen, read, "reading DICOM slices", progress)
+    meta = {"slices": len(chosen), "series": str(getattr(first, "SeriesInstanceUID", "")),
+            "description": str(getattr(first, "SeriesDescription", "")),
+            "modality": str(getattr(first, "Modality", "")),
+            "units": "HU" if str(getattr(first, "Modality", "")) == "CT" else "stored values",
+            "sorted_by": sorted_by, "spacing_from": "DICOM"}
+    if direction is not None:
+        meta["orientation_from"] = "DICOM ImageOrientationPatient and the slice positions"
+    if "ImagePositionPatient" in first:
+        meta["origin"] = [float(v) for v in first.ImagePositionPatient]
+    return Volume(values, (pixel[1], pixel[0], spacing_z), meta, direction)
+
+
+def _frames(ds):
+    try:
+        return int(getattr(ds, "NumberOfFrames", 1) or 1)
+    except (ValueError, TypeError):
+        return 1
+
+
+def _dicom_pixels(path):
+    """The data set and its pixels (colour as RGB), or one clean error."""
+    import pydicom
+
+    ds = None
+    try:
+        ds = pydicom.dcmread(path, force=True)
+        data = ds.pixel_array
+        if str(getattr(ds, "PhotometricInterpretation", "")).startswith("YBR") and data.shape[-1] == 3:
+            from pydicom.pixels import convert_color_space
+
+            data = convert_color_space(data, ds.PhotometricInterpretation, "RGB")
+    except Exception as exc:  # pydicom raises many types for truncated or compressed data
+        syntax = getattr(getattr(ds, "file_meta", None), "TransferSyntaxUID", None)
+        hint = f" (transfer syntax {syntax.name})" if syntax is not None and syntax.is_compressed else ""
+        raise InputError(f"cannot read the pixels of DICOM file {path}{hint}: {first_line(exc)}") from None
+    return ds, data
+
+
+def _rescale(data, ds, slope=None, intercept=None):
+    """Stored values to units (Hounsfield for CT) by RescaleSlope and RescaleIntercept; int16 when they fit."""
+    try:
+        slope = float(slope if slope is not None else (getattr(ds, "RescaleSlope", 1) or 1))
+        intercept = float(intercept if intercept is not None else (getattr(ds, "RescaleIntercept", 0) or 0))
+    except (ValueError, TypeError):
+        raise InputError("a DICOM file's RescaleSlope or RescaleIntercept is not a number; the file is damaged") \
+            from None
+    if slope.is_integer() and intercept.is_integer() and data.dtype.kind in "iub":
+        data = data.astype(np.int32) * int(slope) + int(intercept)
+        if data.size and np.iinfo(np.int16).min <= data.min() and data.max() <= np.iinfo(np.int16).max:
+            data = data.astype(np.int16)
+        return data
+    return (data * np.float32(slope) + np.float32(intercept)).astype(np.float32)
+
+
+def _group(ds, sequence, name):
+    """A functional-group attribute of an enhanced DICOM frame's group (or of the shared groups): the value of
+    ``name`` in the first item of ``sequence``, or ``None``.
+    """
+    if ds is None or sequence not in ds or not len(ds[sequence].value):
+        return None
+    return getattr(ds[sequence].value[0], name, None)
+
+
+def _read_multiframe(path):
+    """One multi-frame DICOM file: enhanced CT/MR (functional groups), an RT dose grid (GridFrameOffsetVector),
+    or frames in file order (cine, secondary capture) when nothing places them.
+    """
+    ds, data = _dicom_pixels(path)
+    count = _frames(ds)
+    data = data.reshape((count,) + data.shape[-(data.ndim - 1):]) if data.ndim > 2 else data[None]
+    frames = [to_grey(frame, path.name) for frame in data]
+    shared = ds.SharedFunctionalGroupsSequence[0] if "SharedFunctionalGroupsSequence" in ds else None
+    per_frame = list(ds.PerFrameFunctionalGroupsSequence) if "PerFrameFunctionalGroupsSequence" in ds else None
+
+    def attribute(k, sequence, name):
+        found = _group(per_frame[k], sequence, name) if per_frame is not None and k < len(per_frame) else None
+        found = found if found is not None else _group(shared, sequence, name)
+        return found if found is not None else getattr(ds, name, None)
+
+    orientation = attribute(0, "PlaneOrientationSequence", "ImageOrientationPatient")
+    pixel = attribute(0, "PixelMeasuresSequence", "PixelSpacing")
+    meta = {"slices": count, "series": str(getattr(ds, "SeriesInstanceUID", "")),
+            "description": str(getattr(ds, "SeriesDescription", "")), "modality": str(getattr(ds, "Modality", "")),
+            "spacing_from": "DICOM"}
+    if per_frame is not None:
+        positions = [attribute(k, "PlanePositionSequence", "ImagePositionPatient") for k in range(count)]
+        if any(p is None for p in positions) or orientation is None:
+            raise InputError(f"{path}: an enhanced DICOM whose frames lack ImagePositionPatient or "
+                             "ImageOrientationPatient; their order and spacing are unknown")
+        rescale = [(attribute(k, "PixelValueTransformationSequence", "RescaleSlope"),
+                    attribute(k, "PixelValueTransformationSequence", "RescaleIntercept")) for k in range(count)]
+        meta["sorted_by"] = "per-frame ImagePositionPatient"
+    elif "GridFrameOffsetVector" in ds and "ImagePositionPatient" in ds and orientation is not None:
+        normal = np.cross(np.array(orientation[:3], float), np.array(orientation[3:], float))
+        origin = np.array([float(v) for v in ds.ImagePositionPatient])
+        positions = [origin + float(offset) * normal for offset in ds.GridFrameOffsetVector]
+        scaling = float(getattr(ds, "DoseGridScaling", 1) or 1)
+        rescale = [(scaling, 0.0)] * count
+        meta.update(sorted_by="GridFrameOffsetVector", units=str(getattr(ds, "DoseUnits", "")) or "stored values")
+    else:
+        warnings.warn(f"{path}: nothing places its {count} frames; they are taken in file order, 1 mm apart",
+                      stacklevel=3)
+        positions, rescale, orientation = None, [(None, None)] * count, None
+        meta["sorted_by"] = "file order"
+    values = np.stack([_rescale(frame, ds, *rescale[k]) for k, frame in enumerate(frames)])
+    row_spacing, column_spacing = (float(v) for v in (pixel or (1.0, 1.0)))
+    direction, spacing_z = None, 1.0
+    if positions is not None:
+        orientation = np.array([float(v) for v in orientation])
+        normal = np.cross(orientation[:3], orientation[3:])
+        along = np.array([np.dot(np.asarray(p, float), normal) for p in positions])
+        order = np.argsort(along, kind="stable")
+        values, along = values[order], along[order]
+        steps = np.diff(along)
+        if len(steps) and np.any(np.isclose(steps, 0)):
+            raise InputError(f"{path}: two frames share one position; the file mixes acquisitions")
+        spacing_z = float(np.median(steps)) if len(steps) else float(getattr(ds, "SliceThickness", 1) or 1)
+        direction = np.stack([orientation[:3], orientation[3:], normal], axis=1)
+        meta["orientation_from"] = "DICOM ImageOrientationPatient and the frame positions"
+        meta["origin"] = [float(v) for v in np.asarray(positions[order[0]], float)]
+    if str(getattr(ds, "Modality", "")) == "CT":
+        meta["units"] = "HU"
+    meta.setdefault("units", "stored values")
+    return Volume(values, (column_spacing, row_spacing, abs(spacing_z)), meta, direction)
+
+
+def _list_series(groups):
+    return "; ".join(f"{uid} ({len(items)} slices, {getattr(items[0][1], 'SeriesDescription', '')!s})"
+                     for uid, items in groups.items())
+
+
+def _sort_dicom(items):
+    """Order slices along the slice normal; return (items, slice spacing, how they were sorted, direction).
+
+    The direction (see :mod:`voxrender.orient`) is known when the slices have ImageOrientationPatient:
+    x along its row direction, y along its column direction, z along the normal, the way the slices are sorted.
+    """
+    first = items[0][1]
+    known = "ImageOrientationPatient" in first
+    if len(items) == 1 and "ImagePositionPatient" not in first:
+        return items, float(getattr(first, "SliceThickness", 1) or 1), "a single slice", None
+    try:
+        orientation = (np.array([float(v) for v in first.ImageOrientationPatient], dtype=float)
+                       if known else np.array([1.0, 0, 0, 0, 1, 0]))  # axial, when the header does not say
+        if orientation.shape != (6,):
+            raise ValueError("ImageOrientationPatient needs six numbers")
+        normal = np.cross(orientation[:3], orientation[3:])
+        direction = np.stack([orientation[:3], orientation[3:], normal], axis=1) if known else None
+        positions = np.array([np.dot([float(v) for v in ds.ImagePositionPatient], normal) for _, ds in items])
+        how = "ImagePositionPatient"
+    except (AttributeError, ValueError, TypeError):
+        direction = None
+        try:
+            positions = np.array([float(ds.InstanceNumber) for _, ds in items])
+            how = "InstanceNumber"
+        except (AttributeError, ValueError, TypeError):
+            raise InputError(f"{items[0][0].parent}: DICOM slices have neither ImagePositionPatient nor "
+                             "InstanceNumber, so their order is unknown") from None
+    order = np.argsort(positions, kind="stable")
+    items = [items[i] for i in order]
+    positions = positions[order]
+    steps = np.diff(positions)
+    if len(steps) and np.any(np.isclose(steps, 0)):
+        k = int(np.argmax(np.isclose(steps, 0)))
+        raise InputError(f"DICOM slices {items[k][0].name} and {items[k + 1][0].name} share one position; "
+                         "the folder mixes acquisitions: keep one in the folder")
+    first = items[0][1]
+    fallback = float(getattr(first, "SpacingBetweenSlices", 0) or getattr(first, "SliceThickness", 0) or 1.0)
+    if how != "ImagePositionPatient" or not len(steps):
+        return items, abs(fallback), how, direction
+    spacing = float(np.median(steps))
+    if np.ptp(steps) > max(0.01, 0.01 * spacing):
+        warnings.warn(f"slice spacing varies from {steps.min():g} to {steps.max():g} mm; using the median "
+                      f"{spacing:g} mm", stacklevel=2)
+    return items, spacing, how, direction
+
+
+
+def holds_dicom(path):
+    """A folder holding DICOM files (or with some below it), or one DICOM file."""
+    return _is_dicom(path) if path.is_file() else bool(_dicom_files(path))
+
+
+READER = Reader(read_dicom, SUFFIXES, options=("series",), sniff=holds_dicom)

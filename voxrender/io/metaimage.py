@@ -1,0 +1,123 @@
+"""MetaImage (ITK): a ``.mhd`` text header beside its data file, or a ``.mha`` holding both; raw or zlib.
+
+MetaImage has no library here: the header is ``Key = Value`` lines up to ``ElementDataFile``.
+"""
+
+from __future__ import annotations
+
+import zlib
+
+import numpy as np
+
+from .. import orient
+from ..errors import InputError
+from ._shared import Reader, Volume, check_spacing, files_in, folder_of_volumes, listed
+
+SUFFIXES = (".mhd", ".mha")
+
+ELEMENT_TYPES = {"MET_UCHAR": "u1", "MET_CHAR": "i1", "MET_USHORT": "u2", "MET_SHORT": "i2",
+                   "MET_UINT": "u4", "MET_INT": "i4", "MET_ULONG": "u8", "MET_LONG": "i8",
+                   "MET_ULONG_LONG": "u8", "MET_LONG_LONG": "i8", "MET_FLOAT": "f4", "MET_DOUBLE": "f8"}
+
+
+def read_metaimage(path, progress):
+    """Read a MetaImage header and its voxels; of a folder, the one MetaImage it holds."""
+    if path.is_dir():
+        headers = [f for f in files_in(path) if f.suffix.lower() in SUFFIXES]
+        if len(headers) != 1:
+            raise folder_of_volumes(path, "MetaImage", SUFFIXES)
+        path = headers[0]
+    header, data_offset = {}, None
+    with open(path, "rb") as f:
+        for raw_line in f:
+            line = raw_line.decode("latin-1").strip()
+            if not line:
+                continue
+            key, sep, value = line.partition("=")
+            if not sep:
+                raise InputError(f"{path}: header line {line[:60]!r} is not 'Key = Value'; not a MetaImage")
+            header[key.strip()] = value.strip()
+            if key.strip() == "ElementDataFile":
+                data_offset = f.tell()
+                break
+    try:
+        dims = [int(v) for v in header["DimSize"].split()]
+        dtype = np.dtype(ELEMENT_TYPES[header["ElementType"]])
+        data_file = header["ElementDataFile"]
+    except KeyError as exc:
+        raise InputError(f"{path}: MetaImage header lacks {exc.args[0]} or has an unknown ElementType") from None
+    if len(dims) != 3:
+        raise InputError(f"{path}: a {len(dims)}-D MetaImage; voxrender needs a 3-D volume")
+    if int(header.get("ElementNumberOfChannels", 1)) != 1:
+        raise InputError(f"{path}: MetaImage with several channels per voxel; give a single-channel volume")
+    msb = header.get("ElementByteOrderMSB", header.get("BinaryDataByteOrderMSB", "False"))
+    dtype = dtype.newbyteorder(">" if msb.lower() == "true" else "<")
+    spacing = header.get("ElementSpacing", header.get("ElementSize", "1 1 1")).split()
+    nbytes = int(np.prod(dims)) * dtype.itemsize
+    if data_file == "LOCAL":
+        source, offset = path, data_offset
+    elif data_file.split()[0] == "LIST" or "%" in data_file:
+        raise InputError(f"{path}: MetaImage slice lists ({data_file}) are not supported; "
+                         "give the slices as a folder instead")
+    else:
+        source, offset = path.parent / data_file, 0
+        if not source.is_file():
+            raise InputError(f"{path}: its data file {source} is missing")
+    header_size = int(header.get("HeaderSize", 0))
+    if header_size == -1:
+        offset = source.stat().st_size - nbytes
+    elif header_size > 0:
+        offset += header_size
+    with open(source, "rb") as f:
+        f.seek(max(offset, 0))
+        payload = f.read()
+    if header.get("CompressedData", "False").lower() == "true":
+        try:
+            payload = zlib.decompressobj(zlib.MAX_WBITS | 32).decompress(payload)
+        except zlib.error as exc:
+            raise InputError(f"{source}: compressed MetaImage data is corrupt ({exc})") from None
+    if len(payload) < nbytes or offset < 0:
+        raise InputError(f"{source}: holds {len(payload)} bytes of voxels but DimSize {dims} of "
+                         f"{header['ElementType']} needs {nbytes}; the file is truncated or the header wrong")
+    values = np.frombuffer(payload, dtype, count=int(np.prod(dims))).reshape(dims[::-1])
+    direction, orientation_from = _metaimage_direction(header, path)
+    meta = {"spacing_from": "MetaImage header", "orientation_from": orientation_from}
+    for key in ("Offset", "Origin", "Position"):
+        if key in header:
+            try:
+                meta["origin"] = [float(v) for v in header[key].split()][:3]
+            except ValueError:
+                pass
+            break
+    meta["source"] = str(path)
+    return Volume(values.astype(dtype.newbyteorder("=")), check_spacing(spacing, path), meta, direction)
+
+
+def _metaimage_direction(header, path):
+    """MetaImage's orientation: TransformMatrix (row k: the LPS direction of voxel axis k, ITK's frame), else
+    AnatomicalOrientation (ITK's letters name the side each axis comes *from*: RAI is LPS).
+    """
+    if "TransformMatrix" in header:
+        try:
+            rows = np.array([float(v) for v in header["TransformMatrix"].split()]).reshape(3, 3)
+        except ValueError:
+            raise InputError(f"{path}: TransformMatrix {header['TransformMatrix']!r} is not nine numbers") from None
+        if abs(abs(np.linalg.det(rows)) - 1) > 1e-3:
+            raise InputError(f"{path}: TransformMatrix is not a rotation (its determinant is {np.linalg.det(rows):g})")
+        return rows.T, "MetaImage TransformMatrix"
+    code = header.get("AnatomicalOrientation", "").strip().upper()
+    if len(code) == 3 and "?" not in code:
+        opposite = {"L": "R", "R": "L", "P": "A", "A": "P", "S": "I", "I": "S"}
+        try:
+            return orient.direction_of("".join(opposite.get(c, "?") for c in code)), "MetaImage AnatomicalOrientation"
+        except InputError:
+            raise InputError(f"{path}: AnatomicalOrientation {code!r} is not an orientation code") from None
+    return None, "unknown: the MetaImage header does not say"
+
+
+def holds_metaimage(path):
+    """A folder holding a MetaImage header (one is read, several are listed)."""
+    return path.is_dir() and any(f.suffix.lower() in SUFFIXES for f in listed(path))
+
+
+READER = Reader(read_metaimage, SUFFIXES, sniff=holds_metaimage)

@@ -1,0 +1,89 @@
+"""NIfTI-1 or -2, ``.nii`` or ``.nii.gz`` (nibabel), scaled by scl_slope and scl_inter, oriented by its sform or qform.
+
+A 4-D file gives the volume chosen by ``frame``.  A folder of NIfTI files (a segmentation's one file per organ) is
+recognised, and refused with what it holds.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from .. import orient
+from ..errors import InputError
+from ._shared import Reader, Volume, check_frame, check_spacing, first_line, folder_of_volumes, volume_files
+
+SUFFIXES = (".nii", ".nii.gz")
+
+
+def read_nifti(path, progress, frame=None):
+    """Read a NIfTI volume (of a 4-D file, the one ``frame`` names)."""
+    import nibabel
+    from nibabel.filebasedimages import ImageFileError
+
+    if path.is_dir():
+        raise folder_of_volumes(path, "NIfTI", SUFFIXES)
+    logger = nibabel.imageglobals.logger
+    level = logger.level
+    logger.setLevel(40)                              # nibabel logs header repairs; the errors below say enough
+    try:
+        image = nibabel.load(str(path))
+        header = image.header
+        shape = image.shape
+    except (ImageFileError, OSError, EOFError, ValueError) as exc:
+        raise InputError(f"cannot read {path} as NIfTI: {first_line(exc)}") from None
+    finally:
+        logger.setLevel(level)
+    with nibabel.openers.ImageOpener(str(path)) as opener:     # as stored: loading mends a zero pixdim to 1
+        stored = type(header).from_fileobj(opener, check=False)
+    pixdim = [float(v) for v in stored["pixdim"][1:4]]
+    if not all(np.isfinite(v) and v > 0 for v in pixdim):
+        raise InputError(f"{path}: its voxel sizes (pixdim) {pixdim} must be positive; the header is damaged")
+    data = image.dataobj
+    if len(shape) == 4 and shape[3] == 1 and frame is None:
+        frame = 0
+    if len(shape) == 4:
+        check_frame(path, frame, shape[3])
+        data = data[..., frame]
+    else:
+        check_frame(path, frame)
+        if len(shape) != 3:
+            raise InputError(f"{path} holds a {len(shape)}-D image; voxrender needs a 3-D volume")
+    try:
+        values = np.asanyarray(data)
+    except (OSError, EOFError, ValueError) as exc:         # a truncated or corrupt file
+        raise InputError(f"cannot read the voxels of {path}: {first_line(exc)}; the file is truncated or damaged") \
+            from None
+    values = np.transpose(values, (2, 1, 0))                  # NIfTI stores [i, j, k], i fastest: our x, y, z
+    affine, code = header.get_sform(coded=True)
+    source = "NIfTI sform"
+    if not code:
+        affine, code = header.get_qform(coded=True)
+        source = "NIfTI qform"
+    meta = {"spacing_from": "NIfTI pixdim"}
+    if code:
+        matrix = np.asarray(affine, dtype=float)[:3, :3]
+        sizes = np.linalg.norm(matrix, axis=0)
+        if not np.all(sizes > 0):
+            raise InputError(f"{path}: its {source} has a zero column; the header is damaged")
+        direction = orient.ras_to_lps(matrix / sizes)
+        spacing = tuple(float(v) for v in sizes)
+        meta.update(spacing_from=source, orientation_from=source,
+                    origin=orient.ras_to_lps(np.asarray(affine, dtype=float)[:3, 3]).tolist())
+    else:
+        warnings.warn(f"{path} has neither sform nor qform; its orientation is unknown (give it with an "
+                      "orientation code if the presets should hold)", stacklevel=2)
+        direction, spacing = None, tuple(pixdim)
+        meta["orientation_from"] = "unknown: NIfTI without sform or qform"
+    if header.get("scl_slope") is not None and np.isfinite(header["scl_slope"]) and header["scl_slope"] not in (0, 1):
+        meta["scaled"] = f"scl_slope {float(header['scl_slope']):g}, scl_inter {float(header['scl_inter']):g}"
+    return Volume(values, check_spacing(spacing, path), meta, direction)
+
+
+def holds_nifti(path):
+    """A folder of NIfTI files (besides notes)."""
+    return path.is_dir() and bool(volume_files(path, SUFFIXES))
+
+
+READER = Reader(read_nifti, SUFFIXES, options=("frame",), sniff=holds_nifti)

@@ -1,0 +1,65 @@
+"""A multi-page TIFF, one page a slice (imageio and tifffile), its spacing from ImageJ or OME metadata."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from ..errors import InputError
+from ._shared import Reader, Volume, first_line, to_grey
+
+SUFFIXES = (".tif", ".tiff")
+
+
+def read_tiff(path, progress):
+    """Read the pages of a TIFF as slices (colour pages become grey)."""
+    import imageio.v3 as iio
+
+    try:
+        values = iio.imread(path, index=None)
+    except Exception as exc:  # tifffile raises many types for a bad file
+        raise InputError(f"cannot read TIFF {path}: {first_line(exc)}") from None
+    if values.ndim == 2:
+        raise InputError(f"{path} is a single 2-D image; give a multi-page TIFF or a folder of slices")
+    if values.ndim == 4 and values.shape[-1] in (3, 4):
+        values = np.stack([to_grey(page, path.name) for page in values])
+    spacing, spacing_from = _tiff_spacing(path)
+    return Volume(values, spacing, {"spacing_from": spacing_from})
+
+
+def _tiff_spacing(path):
+    """Voxel spacing (x, y, z) in mm from OME or ImageJ metadata, and where it came from; 1 mm when neither says."""
+    import tifffile
+
+    units = {"mm": 1.0, "millimeter": 1.0, "um": 1e-3, "µm": 1e-3, "micron": 1e-3, "micrometer": 1e-3,
+             "nm": 1e-6, "cm": 10.0, "m": 1000.0}
+    try:
+        with tifffile.TiffFile(path) as tif:
+            if tif.ome_metadata:
+                sizes, scale = [], []
+                for axis in "XYZ":
+                    found = re.search(rf'PhysicalSize{axis}="([0-9.eE+-]+)"', tif.ome_metadata)
+                    unit = re.search(rf'PhysicalSize{axis}Unit="([^"]+)"', tif.ome_metadata)
+                    sizes.append(float(found.group(1)) if found else None)
+                    scale.append(units.get(unit.group(1), 1e-3) if unit else 1e-3)   # OME's default unit: µm
+                if all(s is not None and s > 0 for s in sizes):
+                    return tuple(s * f for s, f in zip(sizes, scale, strict=True)), "OME metadata"
+            if tif.imagej_metadata:
+                page = tif.pages[0]
+                factor = units.get(str(tif.imagej_metadata.get("unit", "")).replace("\\u00B5", "µ"), 1.0)
+                resolution = []
+                for tag in ("XResolution", "YResolution"):
+                    value = page.tags.get(tag)
+                    numerator, denominator = value.value if value is not None else (1, 1)
+                    resolution.append(denominator / numerator if numerator else 1.0)
+                z = float(tif.imagej_metadata.get("spacing", 1.0))
+                spacing = tuple(v * factor for v in (*resolution, z))
+                if all(v > 0 for v in spacing):
+                    return spacing, "ImageJ metadata"
+    except (OSError, ValueError, KeyError, TypeError, ZeroDivisionError):
+        pass
+    return (1.0, 1.0, 1.0), "default (the TIFF has no ImageJ or OME spacing)"
+
+
+READER = Reader(read_tiff, SUFFIXES)
