@@ -6,6 +6,7 @@ import numpy as np
 from dicom_files import write_series
 
 from voxrender import orient
+from voxrender.errors import InputError
 
 SPACING = (0.8, 1.0, 1.25)      # canonical x, y, z in mm
 
@@ -13,6 +14,24 @@ SPACING = (0.8, 1.0, 1.25)      # canonical x, y, z in mm
 def random_stack(shape=(5, 6, 7), seed=0):
     """Random ``uint16`` slices ``[z, y, x]`` (0 to 2999), for readers that keep the stored values."""
     return np.random.default_rng(seed).integers(0, 3000, size=shape).astype(np.uint16)
+
+
+def refused_cuts(path, read, count=40):
+    """Cut ``path`` off at ``count`` lengths from nothing to nearly whole, ``read()`` each, and count the cut files
+    it refused with an InputError; any other exception goes on (a cut file is bad input, never a bug).  ``path`` is
+    whole again after."""
+    whole = path.read_bytes()
+    refused = 0
+    try:
+        for size in range(0, len(whole), max(1, len(whole) // count)):
+            path.write_bytes(whole[:size])
+            try:
+                read()
+            except InputError:
+                refused += 1
+    finally:
+        path.write_bytes(whole)
+    return refused
 
 
 def phantom():

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from conftest import data_path
 from dicom_files import write_enhanced, write_series
+from formats import refused_cuts
 
 from voxrender import io
 from voxrender.errors import InputError
@@ -142,3 +143,22 @@ def test_one_dicom_file_is_refused_whatever_names_it(tmp_path):
     for path, format in [(bare, "auto"), (paths[1], "dicom")]:
         with pytest.raises(InputError, match="one DICOM file; give the folder that holds the whole series"):
             io.read_volume(path, format=format)
+
+
+@pytest.mark.parametrize("kind", ["classic", "RLELossless", "JPEG2000Lossless", "enhanced"])
+def test_cut_dicom_files_are_bad_input(tmp_path, kind):
+    """pydicom's errors for a cut-off file (struct.error, BytesLengthException, a decoder's RuntimeError ...) are bad
+    input."""
+    import pydicom
+    from pydicom import uid
+
+    stored = np.random.default_rng(9).integers(0, 2000, size=(3, 64, 64))
+    if kind == "enhanced":
+        victim = write_enhanced(tmp_path / "ct.dcm", stored.astype(np.int16))
+    else:
+        victim = write_series(tmp_path, stored)[-1]
+    if kind not in ("classic", "enhanced"):
+        ds = pydicom.dcmread(victim)
+        ds.compress(getattr(uid, kind), ds.pixel_array.astype(np.int16))
+        ds.save_as(victim)
+    assert refused_cuts(victim, lambda: io.read_volume(tmp_path)) >= 30

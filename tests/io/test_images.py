@@ -3,7 +3,7 @@
 import imageio.v3 as iio
 import numpy as np
 import pytest
-from formats import random_stack
+from formats import random_stack, refused_cuts
 
 from voxrender import io
 from voxrender.errors import InputError
@@ -46,3 +46,11 @@ def test_corrupt_image(tmp_path):
     (tmp_path / "2.png").write_bytes(b"\x89PNG garbage")
     with pytest.raises(InputError, match="cannot read image"):
         io.read_volume(tmp_path)
+
+
+@pytest.mark.parametrize("suffix", [".png", ".tif", ".bmp", ".jpg"])
+def test_cut_images_are_bad_input(tmp_path, suffix):
+    """Pillow's and tifffile's errors for a cut-off slice (SyntaxError, struct.error, zlib.error ...) are bad input."""
+    for z in range(2):
+        iio.imwrite(tmp_path / f"{z}{suffix}", np.random.default_rng(z).integers(0, 255, (30, 40)).astype(np.uint8))
+    assert refused_cuts(tmp_path / f"1{suffix}", lambda: io.read_volume(tmp_path)) >= 20

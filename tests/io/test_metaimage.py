@@ -5,6 +5,7 @@ import zlib
 import numpy as np
 import pytest
 from conftest import data_path
+from formats import refused_cuts
 
 from voxrender import io
 from voxrender.errors import InputError
@@ -60,3 +61,23 @@ def test_a_folder_with_one_metaimage_reads_it_and_with_two_lists_them(tmp_path):
     _write_mhd(tmp_path / "b.mha", values, local=True)
     with pytest.raises(InputError, match=r"holds 2 MetaImage volume files \(a.mhd, b.mha\), not slices; give one"):
         io.read_volume(tmp_path)
+
+
+@pytest.mark.parametrize("line", ["DimSize = 5 4 x", "DimSize = 5 -4 3", "ElementNumberOfChannels = one",
+                                  "HeaderSize = -", "ElementDataFile ="])
+def test_header_values_that_are_not_numbers(tmp_path, line):
+    key = line.split()[0]
+    _write_mhd(tmp_path / "v.mha", np.zeros((3, 4, 5), np.int16), local=True)
+    header, _, payload = (tmp_path / "v.mha").read_bytes().partition(b"ElementDataFile = LOCAL\n")
+    lines = [text for text in header.decode().splitlines() if not text.startswith(key)]
+    data = "ElementDataFile = LOCAL\n" if key != "ElementDataFile" else line + "\n"
+    (tmp_path / "v.mha").write_bytes(("\n".join(lines + [line]) + "\n" + data).encode() + payload)
+    with pytest.raises(InputError, match="v.mha"):
+        io.read_volume(tmp_path / "v.mha")
+
+
+@pytest.mark.parametrize("compressed", [False, True])
+def test_cut_metaimages_are_bad_input(tmp_path, compressed):
+    _write_mhd(tmp_path / "v.mha", np.random.default_rng(0).integers(0, 999, (3, 8, 9)).astype(np.int16), compressed,
+               local=True)
+    assert refused_cuts(tmp_path / "v.mha", lambda: io.read_volume(tmp_path / "v.mha")) >= 30

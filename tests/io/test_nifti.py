@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from formats import refused_cuts
 
 from voxrender import io
 from voxrender.errors import InputError
@@ -94,3 +95,12 @@ def test_a_folder_of_nifti_files_says_what_it_holds(tmp_path):
         io.read_volume(folder)
     (folder / "scan.raw").write_bytes(b"\0" * 64)          # something else beside them: not a folder of volumes
     assert not io.READERS["nifti"].sniff(folder)
+
+
+@pytest.mark.parametrize("name", ["cut.nii", "cut.nii.gz"])
+def test_cut_nifti_files_are_bad_input(tmp_path, name):
+    import nibabel
+
+    data = np.random.default_rng(0).integers(0, 999, (9, 8, 7)).astype(np.int16)
+    nibabel.save(nibabel.Nifti1Image(data, np.eye(4)), str(tmp_path / name))
+    assert refused_cuts(tmp_path / name, lambda: io.read_volume(tmp_path / name)) >= 30

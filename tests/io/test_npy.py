@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from formats import random_stack
+from formats import random_stack, refused_cuts
 
 from voxrender import io
 from voxrender.errors import InputError
@@ -21,3 +21,8 @@ def test_booleans_become_zero_and_one(tmp_path):
     np.save(tmp_path / "mask.npy", random_stack() > 1500)
     values = io.read_volume(tmp_path / "mask.npy").values
     assert values.dtype == np.uint8 and set(np.unique(values)) == {0, 1}
+
+
+def test_cut_npy_files_are_bad_input(tmp_path):
+    np.save(tmp_path / "v.npy", random_stack())
+    assert refused_cuts(tmp_path / "v.npy", lambda: io.read_volume(tmp_path / "v.npy")) >= 30

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from formats import refused_cuts
 
 from voxrender import io
 from voxrender.errors import InputError
@@ -76,3 +77,12 @@ def test_raw_slices_beside_their_nrrd_header_are_not_a_folder_of_volumes(tmp_pat
     with pytest.raises(InputError, match=r"holds 4 files \(quarter.1, quarter.2, quarter.3, ...\) but no") as info:
         io.read_volume(tmp_path)
     assert info.value.parameter == "raw"
+
+
+@pytest.mark.parametrize("encoding", ["raw", "gzip", "bzip2"])
+def test_cut_nrrd_files_are_bad_input(tmp_path, encoding):
+    import nrrd
+
+    data = np.random.default_rng(0).integers(0, 999, (7, 8, 9)).astype(np.int16)
+    nrrd.write(str(tmp_path / "v.nrrd"), data, {"encoding": encoding}, index_order="C")
+    assert refused_cuts(tmp_path / "v.nrrd", lambda: io.read_volume(tmp_path / "v.nrrd")) >= 30

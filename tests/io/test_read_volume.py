@@ -1,4 +1,4 @@
-"""voxrender.io.read_volume: options, and the recipe for a new format."""
+"""voxrender.io.read_volume: options, the recipe for a new format, and bugs that stay bugs."""
 
 import json
 import types
@@ -6,10 +6,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from formats import random_stack
+from click.testing import CliRunner
+from formats import phantom, random_stack, stored, write_dicom, write_metaimage, write_nifti, write_nrrd
 
 from voxrender import io
+from voxrender.cli import main
 from voxrender.errors import InputError
+from voxrender.output import write_slices
 
 
 def test_natural_key_orders_numbers():
@@ -77,3 +80,83 @@ def test_a_toy_format_added_by_the_recipe(tmp_path, monkeypatch):
     assert encoded.segments.voxel_count == 6
     with pytest.raises(InputError, match="toy input takes no series"):
         io.read_volume(tmp_path / "box.toy", series="1.2")
+
+
+# ------------------------------------------------------------------ bugs stay bugs
+
+def small_input(format, folder):
+    """A small valid input of ``format`` in ``folder``, and the command-line options it needs."""
+    folder.mkdir()
+    values, spacing, direction = stored(phantom(), "LPS")
+    if format == "images":
+        return write_slices(values.astype(np.uint16), folder / "slices"), []
+    if format == "tiff":
+        import tifffile
+
+        tifffile.imwrite(folder / "v.tif", values.astype(np.uint16))
+        return folder / "v.tif", []
+    if format == "raw":
+        values.astype("<u2").tofile(folder / "v.raw")
+        return folder / "v.raw", ["--raw", f"{values.shape[2]}x{values.shape[1]}:uint16:little"]
+    if format == "npy":
+        np.save(folder / "v.npy", values)
+        return folder / "v.npy", []
+    if format == "dicom":
+        write_dicom(folder / "series", values, spacing, direction)
+        return folder / "series", []
+    writer = {"nifti": write_nifti, "nrrd": write_nrrd, "metaimage": write_metaimage}[format]
+    return writer(folder / {"nifti": "v.nii", "nrrd": "v.nrrd", "metaimage": "v.mha"}[format], values, spacing,
+                  direction), []
+
+
+def info(path, options):
+    return CliRunner().invoke(main, ["info", str(path), *options])
+
+
+# Each reader's call into its library (or, for MetaImage, which has none, its own header parser).
+LIBRARY_CALLS = {"images": "imageio.v3.imread", "tiff": "imageio.v3.imread", "dicom": "pydicom.dcmread",
+                 "nifti": "nibabel.load", "nrrd": "nrrd.read", "npy": "numpy.load", "raw": "numpy.fromfile",
+                 "metaimage": "voxrender.io.metaimage._metaimage_direction"}
+
+
+@pytest.mark.parametrize("format", sorted(LIBRARY_CALLS))
+def test_a_bug_in_a_reading_call_is_an_internal_error(tmp_path, monkeypatch, format):
+    """A reader turns only its library's errors for a damaged file into bad input: any other one, from a bug, ends
+    the command with exit status 1, as an internal error."""
+    path, options = small_input(format, tmp_path / format)
+    assert info(path, options).exit_code == 0
+
+    def bug(*args, **kwargs):
+        raise ZeroDivisionError("a bug")
+
+    monkeypatch.setattr(LIBRARY_CALLS[format], bug)
+    result = info(path, options)
+    assert result.exit_code == 1, result.output
+    assert result.stderr.startswith("internal error: ZeroDivisionError: a bug")
+
+
+@pytest.mark.parametrize("format, function", [("images", "voxrender.io.images.to_grey"),
+                                              ("dicom", "voxrender.io.dicom._rescale"),
+                                              ("nifti", "voxrender.io.nifti.check_spacing")])
+def test_a_bug_in_a_reader_is_an_internal_error(tmp_path, monkeypatch, format, function):
+    path, options = small_input(format, tmp_path / format)
+
+    def bug(*args, **kwargs):
+        raise TypeError("a bug")
+
+    monkeypatch.setattr(function, bug)
+    result = info(path, options)
+    assert result.exit_code == 1 and result.stderr.startswith("internal error: TypeError: a bug"), result.output
+
+
+def test_running_out_of_memory_is_not_a_damaged_file(tmp_path, monkeypatch):
+    path, _ = small_input("images", tmp_path / "images")
+
+    def out_of_memory(*args, **kwargs):
+        raise MemoryError
+
+    monkeypatch.setattr("imageio.v3.imread", out_of_memory)
+    with pytest.raises(MemoryError):
+        io.read_volume(path)
+    result = info(path, [])
+    assert "cannot read image" not in result.stderr and result.stderr.startswith("error: out of memory")

@@ -3,7 +3,7 @@
 import imageio.v3 as iio
 import numpy as np
 import pytest
-from formats import random_stack
+from formats import random_stack, refused_cuts
 
 from voxrender import io
 from voxrender.errors import InputError
@@ -38,3 +38,11 @@ def test_ome_tiff(tmp_path):
                                "PhysicalSizeXUnit": "mm", "PhysicalSizeYUnit": "mm", "PhysicalSizeZUnit": "mm"})
     volume = io.read_volume(tmp_path / "ome.ome.tif")
     assert volume.spacing == (0.5, 0.25, 2.0) and volume.meta["spacing_from"] == "OME metadata"
+
+
+@pytest.mark.parametrize("compression", [None, "zlib"])
+def test_cut_tiffs_are_bad_input(tmp_path, compression):
+    import tifffile
+
+    tifffile.imwrite(tmp_path / "v.tif", random_stack(), imagej=True, compression=compression)
+    assert refused_cuts(tmp_path / "v.tif", lambda: io.read_volume(tmp_path / "v.tif")) >= 20

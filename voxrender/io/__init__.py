@@ -24,7 +24,8 @@ Every reader also returns, when its header says it, the volume's *direction* (se
 :func:`read_volume` then brings the volume to the canonical patient frame (LPS) by flips and permutations.
 Readers stream: the volume array is allocated once and filled slice by slice.
 
-Adding a format is one module with its reading function
+A reader turns only the errors its library raises for a damaged file into :class:`~voxrender.errors.InputError`;
+anything else (a bug, a ``MemoryError``) goes on as it is.  Adding a format is one module with its reading function
 and its ``READER`` record, one line in ``READERS`` and one test file (see ``docs/design.md``).
 """
 

@@ -7,6 +7,7 @@ groups, RT dose grids by GridFrameOffsetVector.
 
 from __future__ import annotations
 
+import struct
 import warnings
 
 import numpy as np
@@ -15,6 +16,26 @@ from ..errors import InputError
 from ._shared import Reader, Volume, fill_stack, first_line, natural_key, to_grey
 
 SUFFIXES = (".dcm", ".dicom", ".ima")
+# The header values that group, sort and place the slices.
+HEADER_KEYWORDS = ("Rows", "Columns", "Modality", "SOPClassUID", "SeriesInstanceUID", "SeriesDescription",
+                   "NumberOfFrames", "ImagePositionPatient", "ImageOrientationPatient", "InstanceNumber",
+                   "PixelSpacing", "SliceThickness", "SpacingBetweenSlices")
+
+
+def damaged_file_errors():
+    """What pydicom raises for a damaged file or one it cannot decode, found in its test files and cut or garbled ones.
+
+    Its own errors; ``struct.error`` and ``EOFError`` for cut-off elements; ``AttributeError`` (and ``KeyError``) for
+    a missing required element; ``ValueError`` and ``TypeError`` for values that are not what their VR says;
+    ``NotImplementedError`` for an unknown VR or transfer syntax; ``RuntimeError`` when no installed decoder reads
+    the pixel data.
+    """
+    from pydicom.errors import BytesLengthException, InvalidDicomError
+
+    return (InvalidDicomError, BytesLengthException, OSError, EOFError, struct.error, AttributeError, KeyError,
+            ValueError, TypeError, NotImplementedError, RuntimeError)
+
+
 def _dicom_files(folder):
     """DICOM files in ``folder``; when it holds none itself, those anywhere below it (exports nest them)."""
     files = [p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".") and _is_dicom(p)]
@@ -47,6 +68,7 @@ def read_dicom(folder, progress, series=None):
     files = _dicom_files(folder)
     if not files:
         raise InputError(f"{folder} holds no DICOM files")
+    damaged = damaged_file_errors()
     headers = []
     for f in progress(files, len(files), "reading DICOM headers"):
         try:
@@ -54,7 +76,9 @@ def read_dicom(folder, progress, series=None):
                 ds = pydicom.dcmread(f, stop_before_pixels=True)
             except InvalidDicomError:               # no file meta header: older files, read as a bare data set
                 ds = pydicom.dcmread(f, stop_before_pixels=True, force=True)
-        except (InvalidDicomError, OSError, EOFError, ValueError, TypeError, KeyError, AttributeError) as exc:
+            for keyword in HEADER_KEYWORDS:       # pydicom decodes a value when first asked: a damaged one fails here
+                ds.get(keyword)
+        except damaged as exc:
             raise InputError(f"cannot read DICOM file {f}: {first_line(exc)}") from None
         missing = [key for key in ("Rows", "Columns") if key not in ds]
         if missing:
@@ -74,13 +98,16 @@ def read_dicom(folder, progress, series=None):
                          f"{_list_series(groups)}", parameter="series")
     else:
         chosen = next(iter(groups.values()))
-    if any(_frames(ds) > 1 for _, ds in chosen):
-        if len(chosen) > 1:
-            raise InputError(f"the series in {folder} mixes multi-frame and single-frame files; keep one kind")
-        return _read_multiframe(chosen[0][0])
     try:
+        if any(_frames(ds) > 1 for _, ds in chosen):
+            if len(chosen) > 1:
+                raise InputError(f"the series in {folder} mixes multi-frame and single-frame files; keep one kind")
+            return _read_multiframe(chosen[0][0])
         chosen, spacing_z, sorted_by, direction = _sort_dicom(chosen)
-    except (ValueError, TypeError) as exc:       # a header value that is not what its type says (e.g. IS "1A")
+        pixel = [float(v) for v in getattr(chosen[0][1], "PixelSpacing", [1.0, 1.0])]
+    except InputError:
+        raise
+    except (ValueError, TypeError, NotImplementedError) as exc:   # a value its VR does not allow (IS "1A", DS "?.0")
         raise InputError(f"{folder}: a DICOM header value is invalid ({first_line(exc)}); the files are damaged") \
             from None
     first = chosen[0][1]
@@ -91,7 +118,6 @@ def read_dicom(folder, progress, series=None):
     if "PixelSpacing" not in first:
         warnings.warn("the DICOM series has no PixelSpacing; using 1 mm (give the spacing if that is wrong)",
                       stacklevel=2)
-    pixel = [float(v) for v in getattr(first, "PixelSpacing", [1.0, 1.0])]
 
     def read(item):
         f, _ = item
@@ -121,20 +147,28 @@ def _frames(ds):
 def _dicom_pixels(path):
     """The data set and its pixels (colour as RGB), or one clean error."""
     import pydicom
+    from pydicom.pixels import convert_color_space
 
+    damaged = damaged_file_errors()
     ds = None
     try:
         ds = pydicom.dcmread(path, force=True)
         data = ds.pixel_array
         if str(getattr(ds, "PhotometricInterpretation", "")).startswith("YBR") and data.shape[-1] == 3:
-            from pydicom.pixels import convert_color_space
-
             data = convert_color_space(data, ds.PhotometricInterpretation, "RGB")
-    except Exception as exc:  # pydicom raises many types for truncated or compressed data
-        syntax = getattr(getattr(ds, "file_meta", None), "TransferSyntaxUID", None)
-        hint = f" (transfer syntax {syntax.name})" if syntax is not None and syntax.is_compressed else ""
-        raise InputError(f"cannot read the pixels of DICOM file {path}{hint}: {first_line(exc)}") from None
+    except damaged as exc:
+        raise InputError(f"cannot read the pixels of DICOM file {path}{_compression(ds, damaged)}: "
+                         f"{first_line(exc)}") from None
     return ds, data
+
+
+def _compression(ds, damaged):
+    """`` (transfer syntax NAME)`` when ``ds`` says its pixel data is compressed, for a message; else empty."""
+    try:
+        syntax = ds.file_meta.TransferSyntaxUID
+        return f" (transfer syntax {syntax.name})" if syntax.is_transfer_syntax and syntax.is_compressed else ""
+    except damaged:                       # no data set, no file meta, or a garbled UID: the message goes without
+        return ""
 
 
 def _rescale(data, ds, slope=None, intercept=None):
@@ -142,7 +176,7 @@ def _rescale(data, ds, slope=None, intercept=None):
     try:
         slope = float(slope if slope is not None else (getattr(ds, "RescaleSlope", 1) or 1))
         intercept = float(intercept if intercept is not None else (getattr(ds, "RescaleIntercept", 0) or 0))
-    except (ValueError, TypeError):
+    except (ValueError, TypeError, NotImplementedError):          # not a number, or of an unknown VR
         raise InputError("a DICOM file's RescaleSlope or RescaleIntercept is not a number; the file is damaged") \
             from None
     if slope.is_integer() and intercept.is_integer() and data.dtype.kind in "iub":

@@ -2,10 +2,28 @@
 
 from __future__ import annotations
 
+import struct
+import zlib
+
 from ..errors import InputError
 from ._shared import Reader, Volume, files_in, fill_stack, first_line, listed, to_grey
 
 SUFFIXES = (".png", ".tif", ".tiff", ".bmp", ".jpg", ".jpeg")
+
+
+def damaged_file_errors():
+    """What imageio raises for an image file it cannot read, found by cutting and garbling files.
+
+    Pillow's ``OSError`` (``UnidentifiedImageError`` among them), ``SyntaxError`` and ``ValueError`` for broken
+    headers and ``DecompressionBombError`` for absurd sizes; tifffile's ``TiffFileError`` (a ``ValueError``),
+    ``struct.error`` and ``zlib.error`` for cut-off files, ``RuntimeError`` for pages that contradict each other and
+    ``NotImplementedError`` for compressions it cannot decode.  (A garbled TIFF header can also trip tifffile's own
+    arithmetic, a ``ZeroDivisionError`` or ``TypeError``; those stay what they are, as any bug does.)
+    """
+    from PIL.Image import DecompressionBombError
+
+    return (OSError, SyntaxError, ValueError, DecompressionBombError, struct.error, zlib.error, RuntimeError,
+            NotImplementedError)
 
 
 def read_images(folder, progress):
@@ -15,14 +33,14 @@ def read_images(folder, progress):
     files = [f for f in files_in(folder) if f.suffix.lower() in SUFFIXES]
     if not files:
         raise InputError(f"{folder} holds no images (PNG, TIFF, BMP, JPEG)")
+    damaged = damaged_file_errors()
 
     def read(f):
         try:
-            return to_grey(iio.imread(f), f.name), f.name
-        except InputError:
-            raise
-        except Exception as exc:  # imageio raises many types for a bad file
+            image = iio.imread(f)
+        except damaged as exc:
             raise InputError(f"cannot read image {f}: {first_line(exc)}") from None
+        return to_grey(image, f.name), f.name
 
     values = fill_stack(files, read, "reading images", progress)
     return Volume(values, (1.0, 1.0, 1.0), {"spacing_from": "default (images carry no spacing)",

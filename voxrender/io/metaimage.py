@@ -11,7 +11,7 @@ import numpy as np
 
 from .. import orient
 from ..errors import InputError
-from ._shared import Reader, Volume, check_spacing, files_in, folder_of_volumes, listed
+from ._shared import Reader, Volume, check_spacing, files_in, first_line, folder_of_volumes, listed
 
 SUFFIXES = (".mhd", ".mha")
 
@@ -44,11 +44,16 @@ def read_metaimage(path, progress):
         dims = [int(v) for v in header["DimSize"].split()]
         dtype = np.dtype(ELEMENT_TYPES[header["ElementType"]])
         data_file = header["ElementDataFile"]
+        channels, header_size = int(header.get("ElementNumberOfChannels", 1)), int(header.get("HeaderSize", 0))
     except KeyError as exc:
         raise InputError(f"{path}: MetaImage header lacks {exc.args[0]} or has an unknown ElementType") from None
+    except ValueError as exc:
+        raise InputError(f"{path}: a MetaImage header value is not a whole number ({first_line(exc)})") from None
     if len(dims) != 3:
         raise InputError(f"{path}: a {len(dims)}-D MetaImage; voxrender needs a 3-D volume")
-    if int(header.get("ElementNumberOfChannels", 1)) != 1:
+    if min(dims) < 1:
+        raise InputError(f"{path}: its DimSize {dims} must be three positive sizes; the header is damaged")
+    if channels != 1:
         raise InputError(f"{path}: MetaImage with several channels per voxel; give a single-channel volume")
     msb = header.get("ElementByteOrderMSB", header.get("BinaryDataByteOrderMSB", "False"))
     dtype = dtype.newbyteorder(">" if msb.lower() == "true" else "<")
@@ -56,14 +61,13 @@ def read_metaimage(path, progress):
     nbytes = int(np.prod(dims)) * dtype.itemsize
     if data_file == "LOCAL":
         source, offset = path, data_offset
-    elif data_file.split()[0] == "LIST" or "%" in data_file:
+    elif data_file.split()[:1] == ["LIST"] or "%" in data_file:
         raise InputError(f"{path}: MetaImage slice lists ({data_file}) are not supported; "
                          "give the slices as a folder instead")
     else:
         source, offset = path.parent / data_file, 0
         if not source.is_file():
             raise InputError(f"{path}: its data file {source} is missing")
-    header_size = int(header.get("HeaderSize", 0))
     if header_size == -1:
         offset = source.stat().st_size - nbytes
     elif header_size > 0:

@@ -7,6 +7,7 @@ recognised, and refused with what it holds.
 from __future__ import annotations
 
 import warnings
+import zlib
 
 import numpy as np
 
@@ -21,9 +22,13 @@ def read_nifti(path, progress, frame=None):
     """Read a NIfTI volume (of a 4-D file, the one ``frame`` names)."""
     import nibabel
     from nibabel.filebasedimages import ImageFileError
+    from nibabel.spatialimages import HeaderDataError
 
     if path.is_dir():
         raise folder_of_volumes(path, "NIfTI", SUFFIXES)
+    # what nibabel raises for a damaged file, with gzip's for a .nii.gz and numpy's memory map's for sizes that
+    # leave it a negative length
+    damaged = (ImageFileError, HeaderDataError, OSError, EOFError, ValueError, zlib.error, OverflowError)
     logger = nibabel.imageglobals.logger
     level = logger.level
     logger.setLevel(40)                              # nibabel logs header repairs; the errors below say enough
@@ -31,7 +36,7 @@ def read_nifti(path, progress, frame=None):
         image = nibabel.load(str(path))
         header = image.header
         shape = image.shape
-    except (ImageFileError, OSError, EOFError, ValueError) as exc:
+    except damaged as exc:
         raise InputError(f"cannot read {path} as NIfTI: {first_line(exc)}") from None
     finally:
         logger.setLevel(level)
@@ -52,7 +57,7 @@ def read_nifti(path, progress, frame=None):
             raise InputError(f"{path} holds a {len(shape)}-D image; voxrender needs a 3-D volume")
     try:
         values = np.asanyarray(data)
-    except (OSError, EOFError, ValueError) as exc:         # a truncated or corrupt file
+    except damaged as exc:                                   # a truncated or corrupt file
         raise InputError(f"cannot read the voxels of {path}: {first_line(exc)}; the file is truncated or damaged") \
             from None
     values = np.transpose(values, (2, 1, 0))                  # NIfTI stores [i, j, k], i fastest: our x, y, z

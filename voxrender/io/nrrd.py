@@ -7,6 +7,7 @@ colours.  A folder of NRRD files is recognised, and refused with what it holds.
 from __future__ import annotations
 
 import re
+import zlib
 
 import numpy as np
 
@@ -23,11 +24,11 @@ def read_nrrd(path, progress, frame=None):
 
     if path.is_dir():
         raise folder_of_volumes(path, "NRRD", SUFFIXES)
-    try:
+    try:               # pynrrd's errors, and those of its decoders (zlib, bz2: OSError); an empty file, StopIteration
         values, header = nrrd.read(str(path), index_order="C")
     except FileNotFoundError as exc:
         raise InputError(f"{path}: its data file {exc.filename or ''} is missing") from None
-    except (nrrd.NRRDError, OSError, EOFError, ValueError, KeyError, TypeError) as exc:
+    except (nrrd.NRRDError, OSError, EOFError, ValueError, KeyError, TypeError, zlib.error, StopIteration) as exc:
         raise InputError(f"cannot read {path} as NRRD: {first_line(exc)}") from None
     directions = header.get("space directions")
     if values.ndim == 4:

@@ -8,6 +8,7 @@ import numpy as np
 
 from ..errors import InputError
 from ._shared import Reader, Volume, first_line, to_grey
+from .images import damaged_file_errors
 
 SUFFIXES = (".tif", ".tiff")
 
@@ -18,7 +19,7 @@ def read_tiff(path, progress):
 
     try:
         values = iio.imread(path, index=None)
-    except Exception as exc:  # tifffile raises many types for a bad file
+    except damaged_file_errors() as exc:
         raise InputError(f"cannot read TIFF {path}: {first_line(exc)}") from None
     if values.ndim == 2:
         raise InputError(f"{path} is a single 2-D image; give a multi-page TIFF or a folder of slices")
@@ -57,7 +58,7 @@ def _tiff_spacing(path):
                 spacing = tuple(v * factor for v in (*resolution, z))
                 if all(v > 0 for v in spacing):
                     return spacing, "ImageJ metadata"
-    except (OSError, ValueError, KeyError, TypeError, ZeroDivisionError):
+    except (OSError, ValueError, KeyError, TypeError):      # metadata of the wrong shape: no spacing from it
         pass
     return (1.0, 1.0, 1.0), "default (the TIFF has no ImageJ or OME spacing)"
 
