@@ -279,9 +279,9 @@ class _Group(click.Group):
         except KeyboardInterrupt:
             click.echo("interrupted", err=True)
             sys.exit(130)
-        except MemoryError:
-            click.echo("error: out of memory; --crop a subregion or choose a larger --voxel", err=True)
-            sys.exit(2)
+        except MemoryError:  # sizes are checked before allocating, so running out is not the input's fault
+            click.echo("internal error: out of memory; --crop a subregion or choose a larger --voxel", err=True)
+            sys.exit(1)
         except Exception as exc:  # a bug: one line unless debugging
             if os.environ.get("VOXRENDER_DEBUG"):
                 raise

@@ -159,4 +159,4 @@ def test_running_out_of_memory_is_not_a_damaged_file(tmp_path, monkeypatch):
     with pytest.raises(MemoryError):
         io.read_volume(path)
     result = info(path, [])
-    assert "cannot read image" not in result.stderr and result.stderr.startswith("error: out of memory")
+    assert result.exit_code == 1 and result.stderr.startswith("internal error: out of memory")
