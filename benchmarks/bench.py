@@ -41,8 +41,8 @@ import click
 import numpy as np
 
 from voxrender import io, prep, segments
-from voxrender.pipeline import Encoded
 from voxrender._render import DEFAULT_METHOD, METHODS, render
+from voxrender.pipeline import Encoded
 from voxrender.view import View
 
 THRESHOLD = 300.0        # bone: a thin, convoluted object (the issue's case)
@@ -311,8 +311,8 @@ def bench_raycast(repeat, cases):
 
 def bench_batch(path, views=36, size=512, separate=True):
     """A turntable of ``views`` pictures: one batch with 1 and 2 workers against separate render commands."""
-    from voxrender.batch import Patterns, items_from, parse_views, run_batch
     from voxrender._picture import RenderOptions
+    from voxrender.batch import Patterns, items_from, parse_views, run_batch
     from voxrender.pipeline import PrepOptions, ReadOptions
 
     result = {"views": views, "size": size}
@@ -564,7 +564,6 @@ def bench_octree_files(encoded, repeat, size=512):
     """The octree methods as a user runs them: ``voxrender render x.vxo`` in a fresh process, the octree and
     its face adjacency read from the file; the render seconds each reports (medians of ``repeat``, the two
     methods alternating), at the VPNs of Zhao and Davis."""
-    from voxrender.view import angles_from_vpn
 
     rows = []
     with tempfile.TemporaryDirectory() as folder:

@@ -10,8 +10,8 @@ from pathlib import Path
 
 from click.testing import CliRunner
 
-from voxrender.cli import main
 from voxrender._render import METHODS
+from voxrender.cli import main
 
 GOLDEN = Path(__file__).resolve().parent / "golden"
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"

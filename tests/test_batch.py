@@ -7,9 +7,9 @@ import pytest
 from click.testing import CliRunner
 
 from voxrender import batch
+from voxrender._picture import RenderOptions
 from voxrender.cli import main
 from voxrender.errors import InputError
-from voxrender._picture import RenderOptions
 from voxrender.pipeline import PrepOptions, ReadOptions
 from voxrender.view import PRESETS, rotation_matrix
 

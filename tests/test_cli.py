@@ -8,9 +8,9 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 from click.testing import CliRunner
-
 from conftest import ROOT, data_path
 from dicom_files import write_series
+
 from voxrender.cli import main
 from voxrender.output import write_slices
 from voxrender.samples import SAMPLE_THRESHOLD

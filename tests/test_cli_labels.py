@@ -7,11 +7,11 @@ import imageio.v3 as iio
 import nrrd
 import numpy as np
 import pytest
-
 from test_cli import assert_bad_input, run
 from test_labels import nested
-from voxrender.output import write_nifti
+
 from voxrender.colours import PRESETS, palette
+from voxrender.output import write_nifti
 
 
 @pytest.fixture

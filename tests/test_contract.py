@@ -16,8 +16,8 @@ checked for what it is rather than waved through:
 
 import numpy as np
 import pytest
-
 from reference import entries, exact, hits, ties
+
 from voxrender import segments
 from voxrender._render import Clip, render
 from voxrender._render.ftb import render_ftb

@@ -3,9 +3,9 @@ at most one grey level off on at most 0.1 % of the pixels (room for a last-bit d
 
 import imageio.v3 as iio
 import pytest
-
 from conftest import data_path
 from golden import CASES, GOLDEN, REAL_DATA, render_case
+
 from voxrender.compare import compare
 
 

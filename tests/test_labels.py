@@ -2,12 +2,12 @@
 
 import numpy as np
 import pytest
-
 from conftest import data_path
 from reference import exact_labels
+
 from voxrender import segments
-from voxrender.labels import label_at, label_image, label_pixels
 from voxrender._render import METHODS, Clip, render
+from voxrender.labels import label_at, label_image, label_pixels
 from voxrender.view import View, angles_from_vpn
 
 SIZE = (40, 44)

@@ -2,11 +2,11 @@
 
 import numpy as np
 import pytest
-
 from formats import SPACING, phantom, stored, write_dicom, write_metaimage, write_nifti, write_nrrd
+
 from voxrender import orient, segments
-from voxrender.errors import InputError
 from voxrender._picture import RenderOptions, picture
+from voxrender.errors import InputError
 from voxrender.pipeline import PrepOptions, ReadOptions, load_segments
 from voxrender.view import PRESETS
 

@@ -33,8 +33,9 @@ def test_check_writable(tmp_path):
 
 
 def test_writers_round_trip(tmp_path):
-    import imageio.v3 as iio
     import json
+
+    import imageio.v3 as iio
 
     depth = np.array([[1.5, np.inf]], np.float32)
     output.write_npy(tmp_path / "d.npy", depth)

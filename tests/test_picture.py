@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from voxrender._picture import Outputs, RenderOptions, picture, write_outputs
+from voxrender._render import METHODS, Clip
 from voxrender.cli import main
 from voxrender.errors import InputError
-from voxrender._picture import Outputs, RenderOptions, picture, write_outputs
 from voxrender.pipeline import PrepOptions, load_segments
-from voxrender._render import METHODS, Clip
 from voxrender.view import View
 
 ANGLES = (30.0, 20.0, 10.0)

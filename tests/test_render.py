@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from voxrender import segments
-from voxrender.errors import InputError
 from voxrender._picture import RenderOptions, picture
 from voxrender._render import METHODS, Method, render
 from voxrender._render.geometry import paint_boxes
+from voxrender.errors import InputError
 from voxrender.view import View
 
 

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
-
 from reference import exact
 from test_contract import check
+
 from voxrender import segments
 from voxrender._render import render
 from voxrender._render.btf import render_btf
@@ -69,6 +69,7 @@ def test_a_reversed_order_paints_what_is_behind(monkeypatch):
 
 def test_vhf_head_against_the_reference():
     from conftest import data_path
+
     from voxrender import io
 
     volume = io.read_volume(data_path("vhf_head"))

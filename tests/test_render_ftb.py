@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
-
 from test_contract import check
+
 from voxrender import segments
 from voxrender._render import render
 from voxrender._render.btf import render_btf
@@ -97,6 +97,7 @@ def test_cutaway_shows_the_inside_of_a_hollow_ball():
 
 def test_vhf_head_ftb_equals_btf():
     from conftest import data_path
+
     from voxrender import io
 
     mask = io.read_volume(data_path("vhf_head")).values[::2, ::2, ::2] >= 300

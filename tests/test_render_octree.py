@@ -1,9 +1,9 @@
-import numpy as np
-import pytest
-
 import time
 
+import numpy as np
+import pytest
 from reference import exact
+
 from voxrender import segments
 from voxrender._render.clip import Clip
 from voxrender._render.literal.octree_btf import render_octree_btf_literal

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
-
 from reference import exact
+
 from voxrender import octree, segments
 from voxrender._render.clip import Clip
 from voxrender._render.literal.octree_ftb import B as BLOCKED
@@ -126,6 +126,7 @@ def test_fewer_faces_than_back_to_front_and_the_same_picture():
 
 def test_vhf_head_octree_ftb_equals_the_literal_version_and_the_contract():
     from conftest import data_path
+
     from voxrender import io
 
     mask = io.read_volume(data_path("vhf_head")).values[::4, ::4, ::4] >= 300

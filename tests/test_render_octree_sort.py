@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
-
 from reference import exact
+
 from voxrender import octree, samples, segments
 from voxrender._render.clip import Clip
 from voxrender._render.literal.octree_sort import recode_literal, render_octree_sort_literal, render_zbuffer_literal

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
-
 from reference import entries, exact
+
 from voxrender import segments
 from voxrender._render import render
 from voxrender._render.raycast import proximity_band, render_raycast

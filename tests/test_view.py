@@ -1,10 +1,17 @@
 import numpy as np
 import pytest
-
 from reference import rotation
+
 from voxrender.errors import InputError
-from voxrender.view import (PRESETS, View, angles_from_matrix, angles_from_vpn, fit_scale,
-                            rotation_matrix, vpn_from_angles)
+from voxrender.view import (
+    PRESETS,
+    View,
+    angles_from_matrix,
+    angles_from_vpn,
+    fit_scale,
+    rotation_matrix,
+    vpn_from_angles,
+)
 
 
 def test_rotation_matrix_is_the_papers_product():

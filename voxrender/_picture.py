@@ -16,12 +16,11 @@ from pathlib import Path
 import numpy as np
 
 from . import shade
+from ._render import DEFAULT_METHOD, Clip, DepthImage, method_record, render
 from .errors import InputError
 from .output_kinds import OUTPUTS, fields_per_output
 from .shade import HEADLIGHT, SHADINGS, light_direction
-from ._render import DEFAULT_METHOD, Clip, DepthImage, method_record, render
 from .view import View
-
 
 
 @dataclass(frozen=True)
@@ -129,7 +128,8 @@ class Picture:
     """A finished picture: ``rgb`` (H, W, 3) uint8, the :class:`DepthImage`, ``seconds`` by stage, the
     image-space ``normals`` (H, W, 3) it was lit with (NaN in the background), and for a multi-label object the
     label image (uint16 (H, W), see :mod:`voxrender.labels`) and ``label_table``, ``{label: (name, (r, g, b))}``
-    of the labels it shows."""
+    of the labels it shows.
+    """
 
     rgb: np.ndarray
     image: DepthImage
@@ -184,7 +184,8 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
     started = time.perf_counter()
     normal_image = None
     if options.shading == "gradient":
-        from .normals import kept, normal_image as at_hits
+        from .normals import kept
+        from .normals import normal_image as at_hits
 
         normal_image = at_hits(image.depth, image.view, segments.shape, normals or kept(segments), segments,
                                options.clip)
@@ -209,7 +210,8 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
 
 def label_table(segments, given=None):
     """Name and colour of every label of a multi-label object: ``{label: (name, (r, g, b))}``, from ``given`` (a
-    colour table), else from those kept with the object, else the built-in palette (``colours.label_colours``)."""
+    colour table), else from those kept with the object, else the built-in palette (``colours.label_colours``).
+    """
     from .colours import label_colours
 
     present = segments.meta.get("labels") or np.unique(np.asarray(segments.labels)).tolist()
@@ -218,7 +220,8 @@ def label_table(segments, given=None):
 
 def _label_colours(segments, image, options):
     """The label image of a multi-label picture, its names and colours, and the colour of each pixel (H, W, 3)
-    in [0, 1]; the statistics gain the pixels of each label (``label_pixels``)."""
+    in [0, 1]; the statistics gain the pixels of each label (``label_pixels``).
+    """
     from .labels import label_image, label_pixels
 
     labels = label_image(segments, image, options.clip)

@@ -6,12 +6,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ._picture import RenderOptions, picture
+from ._render import DEFAULT_METHOD
 from .errors import InputError
 from .io import Volume, check_spacing
-from ._picture import RenderOptions, picture
 from .pipeline import PrepOptions, ReadOptions, encode_volume, load_segments
 from .prep import LabelSelection, otsu_threshold
-from ._render import DEFAULT_METHOD
 from .view import PRESETS, View
 
 

@@ -33,14 +33,13 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__, output, parse, segments
+from ._picture import Outputs, RenderOptions, about, picture, write_outputs
+from ._render import framing_box, method_record
 from .errors import InputError
 from .output_kinds import OUTPUTS, fields_per_output
-from ._render import framing_box, method_record
-from ._picture import Outputs, RenderOptions, about, picture, write_outputs
 from .pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
 from .prep import LabelSelection, otsu_threshold
 from .view import PRESETS, angles_from_matrix, frame_together, rotation_matrix
-
 
 SUMMARY_COLUMNS = ["input", "name", "view", "alpha", "beta", "gamma", "method", "output", "status", "error",
                    "labels", "load_s", "prepare_s", "render_s", "shade_s", "write_s", "total_s", "stats"]
@@ -142,7 +141,8 @@ class Item:
 
     def label_picture(self, picture_path, label):
         """Where the picture of one label goes, with ``per_label``: beside the view's picture, ``-label{N}``
-        added to its name."""
+        added to its name.
+        """
         return picture_path.with_name(f"{picture_path.stem}-label{label}{picture_path.suffix}")
 
     def outputs(self, out_dir, view, index):
@@ -307,7 +307,8 @@ def _encode_task(item, cache_dir):
 @functools.lru_cache(maxsize=2)
 def _encoded(path, stamp):
     """The object at ``path`` (``stamp``: its size and time, so a remade file is read again), kept between the
-    tasks of a worker with its octree (read from a ``.vxo``, or built once per object, not once per picture)."""
+    tasks of a worker with its octree (read from a ``.vxo``, or built once per object, not once per picture).
+    """
     return load_segments(path)
 
 
@@ -355,7 +356,8 @@ def _write_label_pictures(item, result, segments, picture_path):
 
 def framed(item, view, encoded):
     """The view of ``item`` at ``view``'s angles.  Framing the object (no scale given) over several views, one
-    scale fits them all, so the size does not jump between the frames of a turntable; each view is centred."""
+    scale fits them all, so the size does not jump between the frames of a turntable; each view is centred.
+    """
     chosen = item.options.view(view.alpha, view.beta, view.gamma)
     if item.options.scale is not None or item.options.fit != "object" or len(item.views) < 2:
         return chosen
@@ -533,7 +535,8 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
 
 def _check_patterns(items, out_dir):
     """Every output of every picture gets a distinct path with the right ending and can be given (normals need
-    gradient shading), before anything is made."""
+    gradient shading), before anything is made.
+    """
     seen = {}
     for item in items:
         for index, view in enumerate(item.views):

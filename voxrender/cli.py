@@ -17,15 +17,15 @@ from pathlib import Path
 import click
 import numpy as np
 
-from . import __version__, batch, colours, compare, io, lines, octree, orient, output, parse, prep, samples, segments
-from .sheet import render_sheet, sheet
-from .errors import InputError
-from .output_kinds import LABELS, OUTPUTS
+from . import __version__, batch, colours, compare, io, lines, orient, output, parse, prep, samples, segments
 from ._picture import Outputs, RenderOptions, about, label_table, picture, write_outputs
-from .pipeline import Encoded, PrepOptions, ReadOptions, is_segments_file, load_segments
 from ._render import DEFAULT_METHOD, METHODS, Clip
 from ._render.raycast import CONNECTIVITIES
+from .errors import InputError
+from .output_kinds import LABELS, OUTPUTS
+from .pipeline import Encoded, PrepOptions, ReadOptions, is_segments_file, load_segments
 from .shade import HEADLIGHT, SHADINGS
+from .sheet import render_sheet, sheet
 from .view import PRESETS, angles_from_vpn
 
 
@@ -509,7 +509,8 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
 @_render_options_decorator
 def sheet_command(inputs, output_path, views, angles, methods, per_label, **options):
     """Lay out pictures in a grid: one input's views x methods (--methods) or x labels (--per-label), or several
-    inputs' views."""
+    inputs' views.
+    """
     given = [flag(name) for name in _output_paths(options)]         # a sheet writes the picture alone
     if given:
         raise InputError(f"a sheet is one picture: {', '.join(given)} cannot apply; use render or batch")

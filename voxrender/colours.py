@@ -20,7 +20,6 @@ import numpy as np
 from .errors import InputError
 from .prep import Window
 
-
 # A few colour names a user may type (and the tissue colours of the presets).
 NAMED = {
     "white": (255, 255, 255), "black": (0, 0, 0), "grey": (128, 128, 128), "gray": (128, 128, 128),
@@ -115,7 +114,8 @@ def read_colour_table(path):
 
 def _split(path, number, line):
     """A whitespace-separated line; ITK-SNAP quotes its names.  Slicer's ``label name r g b a`` and ITK-SNAP's
-    ``label r g b a visible mesh "name"`` become ``[label, name, r, g, b]``."""
+    ``label r g b a visible mesh "name"`` become ``[label, name, r, g, b]``.
+    """
     try:
         words = shlex.split(line)
     except ValueError:

@@ -7,7 +7,6 @@ import numpy as np
 from .errors import InputError
 
 
-
 def read_picture(path):
     """An image file as an array, or one clean error."""
     import imageio.v3 as iio

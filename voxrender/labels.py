@@ -13,7 +13,6 @@ import numpy as np
 
 from ._render.geometry import ray_box_entry
 
-
 # How far (voxels) a hit point computed from a float32 depth may lie from the cube it is on.
 _ON_CUBE = 1e-3
 # Entry depths (float64, voxels) closer than this are the same depth: a tie.

@@ -26,7 +26,6 @@ from dataclasses import dataclass
 import numpy as np
 
 
-
 def d6(delta):
     """6-distance (Eq. 1): ``|dx| + |dy| + |dz|``, the length of the shortest 6-path.
 

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 
-
 _TOWARD = ("L", "P", "S")     # the side each object axis grows toward
 _AWAY = ("R", "A", "I")
 

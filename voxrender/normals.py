@@ -20,7 +20,6 @@ from functools import cached_property
 import numpy as np
 
 
-
 def _stencil(radius, smooth, derive):
     """Offsets ``(n, 3)`` (dx, dy, dz) and the gradient kernels ``(3, n)`` of separable 1-D weights."""
     offsets = np.array(list(itertools.product(range(-radius, radius + 1), repeat=3)))
@@ -64,7 +63,8 @@ def _words(packed):
 
 def _decode(words):
     """The unit vectors of packed normals as words (:func:`_words`): their x, y and z, each a contiguous
-    float32 array."""
+    float32 array.
+    """
     pair = words.view(np.int16).reshape(-1, 2)
     x, y = pair[:, 0] * np.float32(1 / 32767), pair[:, 1] * np.float32(1 / 32767)
     z = 1 - np.abs(x) - np.abs(y)
@@ -128,7 +128,8 @@ def band_voxels(mask, slices=16):
 @dataclass
 class SurfaceNormals:
     """Outward unit normals at the voxels of a surface band: linear voxel ``index`` (sorted) and ``packed``
-    octahedral normals, for a volume of ``shape = (nz, ny, nx)``; ``source`` says what they came from."""
+    octahedral normals, for a volume of ``shape = (nz, ny, nx)``; ``source`` says what they came from.
+    """
 
     shape: tuple
     index: np.ndarray
@@ -143,7 +144,8 @@ class SurfaceNormals:
     @cached_property
     def _bitmap(self):
         """The band as bits, one per voxel of the volume and 64 to a word, and the count of band voxels before
-        each word: the place of any voxel in ``index`` without a search."""
+        each word: the place of any voxel in ``index`` without a search.
+        """
         index = np.asarray(self.index, np.int64)
         words = np.zeros(int(np.prod(self.shape, dtype=np.int64)) // 64 + 2, np.uint64)
         word = index >> 6
@@ -155,7 +157,8 @@ class SurfaceNormals:
 
     def _place(self, linear):
         """For voxel numbers ``linear`` (any integers; those off the volume are not there): their place in
-        ``index`` (where they are, or would be), and whether they are there."""
+        ``index`` (where they are, or would be), and whether they are there.
+        """
         words, before = self._bitmap
         clipped = np.clip(linear, 0, len(words) * 64 - 1)
         at = clipped >> 6
@@ -165,7 +168,8 @@ class SurfaceNormals:
 
     def at(self, points):
         """Normals ``(N, 3)`` at object points ``(N, 3)`` (x, y, z), interpolated from the eight voxel centres
-        around each; NaN where none of the eight has one."""
+        around each; NaN where none of the eight has one.
+        """
         points = np.asarray(points, dtype=np.float64)
         nz, ny, nx = self.shape
         index = np.asarray(self.index)                                    # a plain array, not a memory map
@@ -269,7 +273,8 @@ def _gradient_on_grid(grid, voxels, smooth, derive):
     stencil across x, the row's 1-D weighted sums, from one gather of its window of the grid; rows beyond the
     grid's edge in y or z are the edge's.  The same as :func:`_gradient_of_samples` with the stencil's kernels,
     which takes the few voxels whose window would run off the row's end; a fifth of its time, and no copy of
-    the grid."""
+    the grid.
+    """
     radius = len(smooth) // 2
     grid = np.ascontiguousarray(grid)
     nz, ny, nx = grid.shape
@@ -304,7 +309,8 @@ def _gradient_on_grid(grid, voxels, smooth, derive):
 
 def kept(segments):
     """The normals kept with ``segments``; when there are none (a binary input, an old ``.vxs``), those of the
-    binary mask, built now and kept with them."""
+    binary mask, built now and kept with them.
+    """
     if segments.normals is None:
         segments.normals = surface_normals(segments.to_mask())
     return segments.normals
@@ -314,7 +320,8 @@ def normal_image(depth, view, shape, normals, segments=None, clip=None):
     """Unit normals ``(H, W, 3)`` in image space (toward the viewer: negative Z') at each pixel's hit point;
     NaN where the ray meets nothing or no normal is known.  Where the object was cut, by the volume's edge or
     by ``clip`` (:class:`~voxrender._render.clip.Clip`, with the ``segments`` it cut), the cut face's own normal
-    (:func:`cut_normals`)."""
+    (:func:`cut_normals`).
+    """
     height, width = depth.shape
     out = np.full((height, width, 3), np.nan, np.float32)
     covered = np.isfinite(depth)

@@ -19,14 +19,13 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
-from typing import NamedTuple
 from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 
 from .errors import InputError
 from .segments import expand_runs, ranges
-
 
 WHITE, BLACK, GREY = 0, 1, 2
 X_MARKER = 8  # the digit X, which sorts after 0..7
@@ -209,7 +208,8 @@ class RegionOctree:
     @cached_property
     def white_to_black(self):
         """As :attr:`white_to_white`, to the black leaves across each face: row ``k`` lists the node numbers of
-        the black leaves that share part of a face with white leaf ``white_leaves[k]`` that way."""
+        the black leaves that share part of a face with white leaf ``white_leaves[k]`` that way.
+        """
         return self._white_rows(BLACK)
 
     def _white_rows(self, target_color):
@@ -255,7 +255,8 @@ class RegionOctree:
 
 def _on_threads(work, items):
     """``[work(item) for item in items]``, the items on threads: the work is NumPy calls, which let go of
-    Python's lock, so independent array passes (the axes of an octree) run on all cores."""
+    Python's lock, so independent array passes (the axes of an octree) run on all cores.
+    """
     from concurrent.futures import ThreadPoolExecutor
 
     items = list(items)
@@ -333,7 +334,8 @@ def build(mask):
 
 def build_from_segments(segments):
     """The region octree of run-length :class:`~voxrender.segments.Segments`, without making their mask: the
-    work and memory grow with the object, not with the octree's cube."""
+    work and memory grow with the object, not with the octree's cube.
+    """
     ny = segments.shape[1]
     row, x = expand_runs(segments.run_rows(), segments.starts, segments.ends)
     return _build(_interleave(x, row % ny, row // ny), segments.shape)
@@ -453,7 +455,8 @@ def codes_to_mask(codes, n):
 
 def sections(tree):
     """The region octree, its linear octree and the face adjacency of its white leaves as named arrays, for a
-    ``.vxs`` file (:func:`voxrender.segments.save`); :func:`from_sections` maps them back without copying."""
+    ``.vxs`` file (:func:`voxrender.segments.save`); :func:`from_sections` maps them back without copying.
+    """
     index = "<i4" if 8 * len(tree.color) < 2 ** 31 else "<i8"     # node numbers and counts of neighbours
     arrays = {"octree_n": np.array([tree.n], "<i8"), "octree_color": np.asarray(tree.color, "u1"),
               "octree_level": np.asarray(tree.level, "u1"), "octree_origin": np.asarray(tree.origin, "<i4"),
@@ -468,7 +471,8 @@ def sections(tree):
 
 def from_sections(arrays, shape):
     """The :class:`RegionOctree` kept in a ``.vxs`` file's ``arrays`` (see :func:`sections`), or ``None`` when it
-    holds none; ``shape`` is the object's grid."""
+    holds none; ``shape`` is the object's grid.
+    """
     if "octree_color" not in arrays:
         return None
     n = int(arrays["octree_n"][0])

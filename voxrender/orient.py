@@ -22,7 +22,6 @@ import numpy as np
 
 from .errors import InputError
 
-
 CANONICAL = "LPS"
 _POSITIVE, _NEGATIVE = "LPS", "RAI"       # the side each patient axis grows toward, and the opposite side
 OBLIQUE_DEGREES = 0.01                    # tilts above this are reported

@@ -17,7 +17,6 @@ import numpy as np
 from .errors import InputError
 
 
-
 def check_writable(path):
     """Raise :class:`InputError` now if ``path`` could not be written later.
 
@@ -160,7 +159,8 @@ def write_nifti(path, values, spacing=(1.0, 1.0, 1.0)):
 
 def write_nrrd(path, values, spacing=(1.0, 1.0, 1.0), fields=None):
     """Write ``values[z, y, x]``, in the canonical frame, as a gzip-encoded NRRD in LPS space, atomically;
-    ``fields`` adds header fields (e.g. a ``.seg.nrrd``'s ``Segment0_Name``)."""
+    ``fields`` adds header fields (e.g. a ``.seg.nrrd``'s ``Segment0_Name``).
+    """
     import nrrd
 
     header = {"space": "left-posterior-superior", "space directions": np.diag([float(v) for v in spacing]),

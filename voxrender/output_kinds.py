@@ -15,7 +15,6 @@ from dataclasses import MISSING, dataclass
 from . import output, shade
 
 
-
 @dataclass(frozen=True)
 class Need:
     """Something only some pictures have, which an output needs.

@@ -17,7 +17,6 @@ from .io import RawLayout
 from .prep import Window, otsu_threshold
 
 
-
 def size(text):
     """``"N"`` or ``"WxH"`` pixels to ``(H, W)``.
 

@@ -10,15 +10,14 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
 from . import io, prep, segments
 from .errors import InputError
-
 
 
 @dataclass(frozen=True)
@@ -74,7 +73,8 @@ def is_segments_file(path):
 class Encoded:
     """An encoded object: its segments (with their surface normals), the seconds spent loading (``load``) and
     preparing (``prepare``) them, and the region octree, read from the file that keeps it or built on first use,
-    and kept (:meth:`octree`)."""
+    and kept (:meth:`octree`).
+    """
 
     segments: segments.Segments
     seconds: dict = field(default_factory=dict)
@@ -96,7 +96,8 @@ class Encoded:
     def save(self, path, octree=False):
         """Write the object to a ``.vxs`` file; with ``octree``, also its region octree, linear octree and the
         face adjacency of its leaves (built now if they have not been), so that octree methods rendering from
-        the file pay only their traversal."""
+        the file pay only their traversal.
+        """
         from .octree import sections
 
         segments.save(self.segments, path, sections(self.octree()) if octree else None)
@@ -193,7 +194,8 @@ def encode_volume(volume, prepare=None, read=None, progress=None, source=None):
 
 def _encode_labels(volume, read, prepare, meta, progress):
     """The chosen labels of a label map (the input, or the map paired with it) as segments: one label per run
-    when each label is an object of its own, else one object."""
+    when each label is an object of its own, else one object.
+    """
     from .normals import surface_normals
 
     selection = prepare.labels
@@ -246,7 +248,8 @@ def _encode_labels(volume, read, prepare, meta, progress):
 def _grey_normals(volume, mask, info, prepare):
     """The surface normals of ``mask`` from the volume's grey values: the cropped input's own voxels when the mask
     lies on its grid, cubic samples of it at the mask's grid points when it was resampled; from the mask itself
-    when the volume holds only two values (a binary input)."""
+    when the volume holds only two values (a binary input).
+    """
     from .normals import surface_normals
 
     values = prep.crop(volume.values, prepare.crop)

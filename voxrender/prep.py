@@ -14,7 +14,6 @@ import numpy as np
 from .errors import InputError
 
 
-
 @dataclass(frozen=True)
 class Window:
     """A value window: the object is ``lo <= value <= hi``; ``None`` leaves a side open.
@@ -248,7 +247,8 @@ def classify(volume, windows, *, crop=None, voxel=None, resample=True, progress=
 def _windowed(values, spacing, windows, voxel, resample, progress):
     """The number (1, 2, ...) of the last of ``windows`` holding each voxel, 0 for none (uint8), on the grid the
     object is made on, slice by slice: resampled to cubic voxels, or the input's own.  Returns it with the voxel
-    size and the spacing of that grid."""
+    size and the spacing of that grid.
+    """
     voxel, out_shape = _grid(values.shape, spacing, voxel, resample)
     planes = _resample_slices(values, spacing, voxel, progress) if out_shape is not None else values
     labels = np.empty(out_shape or values.shape, np.uint8)

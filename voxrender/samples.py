@@ -17,7 +17,6 @@ from pathlib import Path
 
 import numpy as np
 
-
 AIR, OBJECT = 40, 1040
 SAMPLE_THRESHOLD = 500
 
@@ -149,7 +148,8 @@ TISSUES = {1: ("bone", (241, 214, 145)), 2: ("soft tissue", (192, 104, 88)), 3: 
 
 def segment_fields(table):
     """The header fields of a 3D Slicer ``.seg.nrrd`` naming and colouring labels ``{label: (name, (r, g, b))}``
-    (for :func:`voxrender.output.write_nrrd`)."""
+    (for :func:`voxrender.output.write_nrrd`).
+    """
     fields = {}
     for k, (label, (name, colour)) in enumerate(sorted(table.items())):
         fields.update({f"Segment{k}_Name": name, f"Segment{k}_Color": " ".join(f"{c / 255:.4f}" for c in colour),

@@ -26,7 +26,6 @@ import numpy as np
 from .errors import InputError
 from .output import atomic_output
 
-
 MAGIC = b"VOXRENDER-SEGMENTS 1\n"
 _ALIGN = 64
 
@@ -178,7 +177,8 @@ def _row_changes(lines):
     """Where a voxel differs from the one before it along its row (``lines`` ``(rows, nx)``), each row with a
     clear voxel added at both ends: sorted places in rows of ``nx + 1`` (place ``c`` of a row is between its
     voxels ``c - 1`` and ``c``).  The rows are compared a block at a time in one buffer, with no padded copy
-    of the volume (new memory is slow to touch)."""
+    of the volume (new memory is slow to touch).
+    """
     count, nx = lines.shape
     block = max(1, _BLOCK_VOXELS // max(nx, 1))
     differ = np.empty((min(block, count), max(nx - 1, 0)), bool)
@@ -264,7 +264,8 @@ def encode_labels(label_map, spacing=(1.0, 1.0, 1.0), meta=None):
 
 def save(segments, path, sections=None):
     """Write ``segments`` to a ``.vxs`` file (atomically), with further named arrays ``sections`` (e.g. the
-    region octree's, :func:`voxrender.octree.sections`), memory-mapped again by :func:`read_sections`."""
+    region octree's, :func:`voxrender.octree.sections`), memory-mapped again by :func:`read_sections`.
+    """
     arrays = {"offsets": np.asarray(segments.offsets, "<i8"), "starts": np.asarray(segments.starts, "<i4"),
               "ends": np.asarray(segments.ends, "<i4")}
     arrays.update({name: np.asarray(array).ravel() for name, array in (sections or {}).items()})
@@ -293,7 +294,8 @@ def save(segments, path, sections=None):
 
 def read_sections(path):
     """The header and the memory-mapped arrays of a ``.vxs`` file: ``(header, {name: array})``; each array is
-    a view of the file's mapping (:func:`is_mapped`), read from disk as it is used."""
+    a view of the file's mapping (:func:`is_mapped`), read from disk as it is used.
+    """
     path = Path(path)
     try:
         with open(path, "rb") as f:

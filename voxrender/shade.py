@@ -13,7 +13,6 @@ import numpy as np
 from .errors import InputError
 
 
-
 def _depth_range(depth):
     covered = np.isfinite(depth)
     if not covered.any():
@@ -24,7 +23,8 @@ def _depth_range(depth):
 
 def _depth_cue(depth, strength):
     """``covered`` and a factor falling linearly from 1 at the nearest covered pixel to ``1 - strength`` at
-    the farthest (of the type of ``depth``)."""
+    the farthest (of the type of ``depth``).
+    """
     covered, near, far = _depth_range(depth)
     step = np.asarray(strength / (far - near), depth.dtype)
     return covered, np.where(covered, 1 - (depth - np.asarray(near, depth.dtype)) * step, 0).astype(depth.dtype)

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 
 
-
 def sheet(rows, captions=None, gap=4, caption_height=16, background=(0, 0, 0), colour=(230, 230, 230)):
     """One RGB picture of ``rows`` of RGB pictures (each row a list), with a caption under each picture.
 

@@ -18,7 +18,6 @@ import numpy as np
 
 from .errors import InputError
 
-
 # Viewer positions for a stack read in DICOM patient order (LPS): x runs to the
 # patient's left, y to the back, z up to the head.  Image up is the head (or, seen
 # from above and below, the face); see the README's table.
@@ -50,7 +49,8 @@ def rotation_matrix(alpha, beta, gamma=0.0):
 def _cos_sin(degrees):
     """Cosine and sine, exact at multiples of 90 degrees: an axis-aligned view then has exact zeros in its
     matrix (cos 90 would be 6e-17), so rays along voxel faces stay on them and the octree methods see the
-    viewing class (one, two or three visible faces) the view really has."""
+    viewing class (one, two or three visible faces) the view really has.
+    """
     if float(degrees) % 90 == 0:
         return ((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0))[int(float(degrees) // 90) % 4]
     radians = math.radians(degrees)

@@ -29,7 +29,6 @@ from ..segments import expand_runs
 from .geometry import paint_boxes
 
 
-
 def back_to_front(n, direction):
     """Indices ``0..n-1`` ordered from the farthest to the nearest, for a view direction component.
 

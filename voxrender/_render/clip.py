@@ -16,7 +16,6 @@ import numpy as np
 from ..errors import InputError
 
 
-
 @dataclass(frozen=True)
 class Clip:
     """Clip limits ``(lo, hi)`` per object axis (half-open, ``None`` for open) and a cut depth.

@@ -36,7 +36,6 @@ from ..view import View
 from .btf import back_to_front
 from .geometry import box_rows, ray_box_entry, row_spans
 
-
 CASES = tuple(range(1, 9))
 
 
@@ -155,7 +154,8 @@ def _distinct_count(ordered):
 
 def _stable_order(*keys):
     """The stable order of the rows by ``keys`` (most significant first), as :func:`numpy.lexsort` of them
-    reversed, from one sort of the keys packed into one integer (a quarter of lexsort's time)."""
+    reversed, from one sort of the keys packed into one integer (a quarter of lexsort's time).
+    """
     packed = np.zeros(len(keys[0]), np.int64)
     room = 1
     for key in keys:

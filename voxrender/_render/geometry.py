@@ -15,7 +15,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-
 # Pixel centres that fall exactly on a face belong to the (closed) box.
 EPS = 1e-9
 

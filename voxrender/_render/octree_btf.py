@@ -26,7 +26,6 @@ from ..view import vpn_from_angles
 from .geometry import paint_boxes
 
 
-
 def visible_axes(vpn):
     """The axes with a potentially visible face, and the side (+1 high, -1 low) each face is on."""
     return [(axis, 1 if vpn[axis] > 0 else -1) for axis in range(3) if vpn[axis] != 0]
@@ -56,7 +55,8 @@ def _face_geometry(tree, nodes, axis, side):
 
 def paint_faces(tree, nodes, axis, side, view, shape):
     """:func:`~voxrender._render.geometry.paint_boxes` for the faces of ``nodes`` on ``axis`` (``side`` +1 or -1);
-    ``owner`` holds node numbers."""
+    ``owner`` holds node numbers.
+    """
     centre, half = _face_geometry(tree, nodes, axis, side)
     found = paint_boxes(view, shape, centre[:, 0], centre[:, 1], centre[:, 2], half, count_scanlines=True)
     return found._replace(owner=np.asarray(nodes)[found.owner])
@@ -64,7 +64,8 @@ def paint_faces(tree, nodes, axis, side, view, shape):
 
 def region_octree(segments, view, clip=None, tree=None):
     """The region octree to traverse: ``tree`` (the object's, built by the caller and kept), or one built now;
-    with active clip limits, the octree of the clipped object."""
+    with active clip limits, the octree of the clipped object.
+    """
     if clip is not None and clip.active:
         return octree.build(clip.apply_mask(segments.to_mask(), view))
     return tree if tree is not None else octree.build_from_segments(segments)

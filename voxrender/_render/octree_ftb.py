@@ -38,7 +38,6 @@ from ..view import vpn_from_angles
 from .octree_btf import front_to_back_children, paint_faces, region_octree, visible_axes
 
 
-
 def _behind(axes):
     """Direction codes of :attr:`RegionOctree.white_to_white` that step away from the viewer on each axis."""
     return [2 * axis + (0 if side > 0 else 1) for axis, side in axes]
@@ -46,7 +45,8 @@ def _behind(axes):
 
 def _near_bits(axes):
     """Per child label, bit ``i`` set when the child lies in the half towards the viewer on visible axis ``i``:
-    then the child's front face on that axis lies on its parent's front face."""
+    then the child's front face on that axis lies on its parent's front face.
+    """
     near = [[octree.CHILD_OFFSETS[label, axis] == (side > 0) for axis, side in axes] for label in range(8)]
     return np.array([sum(1 << i for i, is_near in enumerate(row) if is_near) for row in near], np.uint8)
 

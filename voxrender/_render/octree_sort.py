@@ -31,7 +31,6 @@ from ..view import vpn_from_angles
 from .geometry import paint_boxes
 from .octree_btf import region_octree
 
-
 _AXIS_BIT = {0: 0, 1: 1, 2: 2}  # x -> R (bit 0 of a digit), y -> M (bit 1), z -> L (bit 2)
 
 

@@ -13,12 +13,10 @@ the depth is then exact wherever the visible box is among those nine.
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from ..view import View
 from .geometry import ray_box_entry
-
 
 
 def preimage_view(view, supersample):

@@ -21,7 +21,6 @@ import numpy as np
 from ..lines import Stepper
 from .geometry import ray_box_entry
 
-
 CONNECTIVITIES = ("6", "26", "adaptive")
 
 
@@ -76,7 +75,8 @@ def empty_space(mask, block=BLOCK):
 def _cast(mask, band, view, connectivity, progress=None, space=None):
     """Step every pixel's ray through ``mask``; return the hit voxel per pixel (or -1), the (logical) step counts
     and the iterations run.  With ``space`` (:func:`empty_space`), a 26-ray far from the object takes the
-    steps it has room for at once (:meth:`Stepper.jump`), onto the voxel the steps one by one reach."""
+    steps it has room for at once (:meth:`Stepper.jump`), onto the voxel the steps one by one reach.
+    """
     nz, ny, nx = mask.shape
     matrix = view.matrix
     height, width = view.size
@@ -152,7 +152,8 @@ def _cast(mask, band, view, connectivity, progress=None, space=None):
 
 def _jump(stepper, space, free, x, y, z, shape):
     """Move the 26-mode rays ``free`` (at voxels ``x, y, z``) as far as the empty space lets them, stopping short of
-    their end voxel and inside the volume; returns the steps each took (0: it steps as usual)."""
+    their end voxel and inside the volume; returns the steps each took (0: it steps as usual).
+    """
     distance = space[z // BLOCK, y // BLOCK, x // BLOCK]
     room = np.where(free & (distance >= 2), BLOCK * (distance.astype(np.int64) - 1), 0)
     room = np.minimum(room, stepper.steps_left() - 1)

@@ -12,7 +12,6 @@ import numpy as np
 from . import geometry
 
 
-
 def render_btf_literal(segments, view, clip=None):
     """Back-to-front rendering one voxel at a time, as the paper describes it (the test oracle).
 

@@ -19,7 +19,6 @@ import numpy as np
 from . import geometry
 
 
-
 class Unlit:
     """One list element: an unlit segment ``MIN..MAX`` of a scanline and the LINK to the next."""
 

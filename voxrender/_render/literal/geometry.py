@@ -22,7 +22,6 @@ import math
 
 import numpy as np
 
-
 EPS = 1e-9
 
 
@@ -89,7 +88,8 @@ def _corners(box_centre, half):
 
 def box_scanlines(r, box_centre, half, centre, size, scale, middle=(0.0, 0.0)):
     """First and last pixel row whose centre's scanline crosses the box's projection (may lie off the picture);
-    ``middle`` is the image point at the middle of the picture."""
+    ``middle`` is the image point at the middle of the picture.
+    """
     ys = [to_image(r, corner, centre)[1] - middle[1] for corner in _corners(box_centre, half)]
     height = size[0]
     return (math.ceil(min(ys) * scale + height / 2 - 0.5 - EPS), math.floor(max(ys) * scale + height / 2 - 0.5 + EPS))
@@ -141,7 +141,8 @@ def box_pixels(r, box_centre, half, centre, size, scale, middle=(0.0, 0.0)):
 
 def clip_run(clip, r, z, y, start, end, centre):
     """The part ``(start, end)`` of run ``[start, end]`` of row ``(z, y)`` that the clip keeps, or ``None``,
-    voxel by voxel: inside the limits, centre not nearer than the cut depth."""
+    voxel by voxel: inside the limits, centre not nearer than the cut depth.
+    """
     if clip is None:
         return start, end
     kept = []

@@ -15,7 +15,6 @@ from ... import octree
 from . import geometry
 
 
-
 def literal_tree(segments, view, clip=None, tree=None):
     """The region octree to traverse: ``tree`` or one built from the segments; with a clip, the clipped object's."""
     if clip is not None:
@@ -31,7 +30,8 @@ def visible_faces(vpn):
 
 def children_front_to_back(vpn):
     """Child labels nearest first: the child on the viewer's side along every axis, then by how many axes
-    it is away (ties by label)."""
+    it is away (ties by label).
+    """
     near = [1 if v > 0 else 0 for v in vpn]
     away = {label: sum(int(octree.CHILD_OFFSETS[label][k]) != near[k] for k in range(3)) for label in range(8)}
     return sorted(range(8), key=lambda label: (away[label], label))

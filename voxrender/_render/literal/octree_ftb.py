@@ -31,7 +31,6 @@ import numpy as np
 from ... import octree
 from .octree_btf import FaceScan, children_front_to_back, literal_tree, visible_faces
 
-
 W, B, G = 0, 1, 2
 
 

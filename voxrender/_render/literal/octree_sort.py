@@ -15,7 +15,6 @@ from . import geometry
 from .octree_btf import literal_tree
 
 
-
 def _axes_by_size(vpn):
     """Axes (0 x, 1 y, 2 z) from the largest VPN component to the smallest, ties to the later axis."""
     return sorted(range(3), key=lambda axis: (-abs(vpn[axis]), -axis))
@@ -88,7 +87,8 @@ def _render(segments, view, clip, tree, codes_in_order, keep):
 
 def render_octree_sort_literal(segments, view, clip=None, order="ftb", tree=None):
     """Codes recoded one by one and sorted by Q'; ``"ftb"``: each pixel keeps its first write, ``"painter"``:
-    the reverse order, each write replacing the last."""
+    the reverse order, each write replacing the last.
+    """
     def sorted_codes(codes, n, vpn):
         ordered = sorted(codes, key=lambda q: recode_literal(q, n, vpn))
         return ordered[::-1] if order == "painter" else ordered
