@@ -83,7 +83,7 @@ def hits(mask, alpha, beta, gamma, size, scale, voxels=None, chunk=20_000, shrin
         found.append((rows[met] * width + cols[met], near[met], far[met], owner[met] + start))
     if not found:
         return np.zeros(0, int), np.zeros(0), np.zeros(0), np.zeros(0, int), voxels
-    pixels, near, far, owners = (np.concatenate(part) for part in zip(*found))
+    pixels, near, far, owners = (np.concatenate(part) for part in zip(*found, strict=True))
     return pixels, near, far, owners, voxels
 
 
@@ -108,8 +108,8 @@ def ties(mask, alpha, beta, gamma, size, scale, middle=(0.0, 0.0)):
     inner, _, _, inner_owners, _ = hits(mask, alpha, beta, gamma, size, scale, voxels=voxels, shrink=1e-6,
                                         middle=middle)
     width = size[1]
-    through = set(zip(inner.tolist(), inner_owners.tolist()))
-    surface_only = np.array([(p, o) not in through for p, o in zip(pixels.tolist(), owners.tolist())], bool)
+    through = set(zip(inner.tolist(), inner_owners.tolist(), strict=True))
+    surface_only = np.array([(p, o) not in through for p, o in zip(pixels.tolist(), owners.tolist(), strict=True)], bool)
     tie = np.zeros(size[0] * width, bool)
     tie[pixels[surface_only]] = True
     return tie.reshape(size)
@@ -121,7 +121,7 @@ def entries(mask, alpha, beta, gamma, size, scale, middle=(0.0, 0.0)):
     order = np.lexsort((near, pixels))
     pixels, near = pixels[order], near[order]
     bounds = np.flatnonzero(np.r_[True, pixels[1:] != pixels[:-1], True])
-    return {int(pixels[a]): near[a:b] for a, b in zip(bounds[:-1], bounds[1:])}
+    return {int(pixels[a]): near[a:b] for a, b in zip(bounds[:-1], bounds[1:], strict=True)}
 
 
 def agreement(depth, reference, tolerance=1e-5):

@@ -83,7 +83,7 @@ def check(depth, mask, method, view):
         met = entries(mask, view.alpha, view.beta, view.gamma, view.size, view.scale, view.centre)
         through = exact(mask, view.alpha, view.beta, view.gamma, view.size, view.scale, shrink=1e-6,
                         middle=view.centre)
-        for row, column in zip(*np.nonzero(wrong & tie)):
+        for row, column in zip(*np.nonzero(wrong & tie), strict=True):
             found = met.get(row * view.size[1] + column, np.zeros(0))
             allowed[row, column] = bool(np.any(np.abs(found - depth[row, column]) <= 1e-5)) or (
                 np.isinf(depth[row, column]) and np.isinf(through[row, column]))

@@ -54,7 +54,7 @@ def test_d18_triangle_inequality():
 @pytest.mark.parametrize("make", [lines.line26, lines.line26_symmetric])
 def test_26_lines_are_shortest_26_paths(make):
     starts, ends = random_segments(200, 2, integer=True)
-    for s, e in zip(starts, ends):
+    for s, e in zip(starts, ends, strict=True):
         path = make(s, e)
         assert path[0].tolist() == s.tolist() and path[-1].tolist() == e.tolist()
         assert lines.is_connected(path, 26)
@@ -63,7 +63,7 @@ def test_26_lines_are_shortest_26_paths(make):
 
 def test_26_line_stays_within_half_a_voxel():
     starts, ends = random_segments(100, 3, integer=True)
-    for s, e in zip(starts, ends):
+    for s, e in zip(starts, ends, strict=True):
         path = lines.line26(s, e)
         major = int(np.argmax(np.abs(e - s)))
         t = (path[:, major] - s[major]) / (e[major] - s[major]) if e[major] != s[major] else np.zeros(len(path))
@@ -74,7 +74,7 @@ def test_26_line_stays_within_half_a_voxel():
 @pytest.mark.parametrize("make", [lines.line6_tripod, lines.line6_parametric])
 def test_6_lines_have_the_containment_property(make):
     starts, ends = random_segments(300, 4)
-    for s, e in zip(starts, ends):
+    for s, e in zip(starts, ends, strict=True):
         path = make(s, e)
         assert lines.is_connected(path, 6)
         voxels = {tuple(v) for v in path}
@@ -84,7 +84,7 @@ def test_6_lines_have_the_containment_property(make):
 
 def test_tripod_and_parametric_agree():
     starts, ends = random_segments(300, 5)
-    for s, e in zip(starts, ends):
+    for s, e in zip(starts, ends, strict=True):
         assert np.array_equal(lines.line6_tripod(s, e), lines.line6_parametric(s, e))
 
 
@@ -97,7 +97,7 @@ def test_18_line_example_of_fig_2():
 
 def test_18_lines_connect_their_end_points():
     starts, ends = random_segments(60, 6, integer=True)
-    for s, e in zip(starts, ends):
+    for s, e in zip(starts, ends, strict=True):
         path = lines.line18(s, e)
         assert path[-1].tolist() == e.tolist() and lines.is_connected(path, 18)
         assert len(path) - 1 >= lines.d18(e - s)
@@ -129,11 +129,11 @@ def _stepped_paths(starts, ends, steps, six):
 
 def test_stepper_26_and_6_modes_match_the_single_line_algorithms():
     starts, ends = random_segments(50, 7, integer=True)
-    for s, e, path in zip(starts, ends, _stepped_paths(starts, ends, lines.d26(ends - starts), six=False)):
+    for s, e, path in zip(starts, ends, _stepped_paths(starts, ends, lines.d26(ends - starts), six=False), strict=True):
         assert np.array_equal(path, lines.line26(s, e))
     starts, ends = random_segments(50, 8)
     steps = lines.d6(np.floor(ends + 0.5) - np.floor(starts + 0.5))
-    for s, e, path in zip(starts, ends, _stepped_paths(starts, ends, steps, six=True)):
+    for s, e, path in zip(starts, ends, _stepped_paths(starts, ends, steps, six=True), strict=True):
         assert np.array_equal(path, lines.line6_tripod(s, e))
 
 
@@ -172,7 +172,7 @@ def test_adaptive_lines_keep_containment_in_6_mode():
         stepper.step(k < remaining, np.ones(len(starts), bool))
         for i, v in enumerate(stepper.voxels):
             visited[i].add(tuple(v))
-    for i, (s, e) in enumerate(zip(starts, ends)):
+    for i, (s, e) in enumerate(zip(starts, ends, strict=True)):
         # from the switch on, the path contains every voxel the rest of the segment pierces
         along = here[i] - s
         t = np.clip(along @ (e - s) / ((e - s) @ (e - s)), 0, 1)

@@ -131,7 +131,7 @@ def test_normals_at_points_are_the_trilinear_blend_of_the_corners_present(count,
     if vast:                                                 # the object in a corner of a large volume
         mask = np.pad(mask[:2, :3, :3], ((0, 38), (0, 37), (0, 69)))
     field = normals.surface_normals(mask)
-    unit = {int(k): v for k, v in zip(field.index, normals.octahedral_decode(field.packed))}
+    unit = {int(k): v for k, v in zip(field.index, normals.octahedral_decode(field.packed), strict=True)}
     nz, ny, nx = mask.shape
     points = np.random.default_rng(12).uniform(-1.5, [4.5, 4.5, 3.5] if vast else [nx + 0.5, ny + 0.5, nz + 0.5],
                                                (count, 3))
@@ -139,12 +139,12 @@ def test_normals_at_points_are_the_trilinear_blend_of_the_corners_present(count,
     points[-1] = [-0.5, 0.2, 0.3]                            # x = -1 and 0 around it: rows' ends
     got = field.at(points)
     assert ("_bitmap" in field.__dict__) == (count > 100 and not vast)
-    for point, normal in zip(points, got):
+    for point, normal in zip(points, got, strict=True):
         total = np.zeros(3)
         base = np.floor(point).astype(int)
         for corner in itertools.product((0, 1), repeat=3):
             x, y, z = base + corner
-            weight = np.prod([f if c else 1 - f for f, c in zip(point - base, corner)])
+            weight = np.prod([f if c else 1 - f for f, c in zip(point - base, corner, strict=True)])
             if 0 <= x < nx and 0 <= y < ny and 0 <= z < nz and (z * ny + y) * nx + x in unit:
                 total += weight * unit[(z * ny + y) * nx + x]
         if np.linalg.norm(total) > 1e-12:

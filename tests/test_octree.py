@@ -67,7 +67,7 @@ def test_a_vxo_keeps_the_octree_and_its_face_adjacency(tmp_path):
         assert np.array_equal(getattr(again.octree(), name), getattr(built, name)), name
     assert is_mapped(again.octree().color)
     for kind in ("white_to_white", "white_to_black"):
-        for stored, fresh in zip(getattr(again.octree(), kind), getattr(built, kind)):
+        for stored, fresh in zip(getattr(again.octree(), kind), getattr(built, kind), strict=True):
             assert np.array_equal(stored.indptr, fresh.indptr) and np.array_equal(stored.indices, fresh.indices)
     made.save(tmp_path / "plain.vxs")
     assert not load_segments(tmp_path / "plain.vxs").has_octree
@@ -123,7 +123,7 @@ def test_the_object_sized_build_equals_the_dense_one(seed):
     expected = dense_build(mask)
     for tree in (octree.build(mask), octree.build_from_segments(encode(mask))):
         found = [tree.color, tree.level, tree.origin, tree.first_child]
-        assert all(np.array_equal(a, b) for a, b in zip(found, expected))
+        assert all(np.array_equal(a, b) for a, b in zip(found, expected, strict=True))
 
 
 def _leaf_labels(tree):
@@ -145,8 +145,8 @@ def test_leaf_pairs_are_the_face_adjacent_leaves():
         labels = _leaf_labels(tree)
         for axis, (low, high) in enumerate(tree.leaf_pairs):
             a = np.moveaxis(labels, axis, 0)
-            expected = {(int(p), int(q)) for p, q in zip(a[:-1].ravel(), a[1:].ravel()) if p != q}
-            assert set(zip(low.tolist(), high.tolist())) == expected
+            expected = {(int(p), int(q)) for p, q in zip(a[:-1].ravel(), a[1:].ravel(), strict=True) if p != q}
+            assert set(zip(low.tolist(), high.tolist(), strict=True)) == expected
 
 
 def test_parents_and_white_adjacency():
@@ -166,5 +166,5 @@ def test_parents_and_white_adjacency():
             keep = (tree.color[source] == octree.WHITE) & (tree.color[target] == color)
             rows = np.repeat(np.arange(len(matrix.indptr) - 1), np.diff(matrix.indptr))
             cols = matrix.indices
-            assert set(zip(white[rows].tolist(), names[cols].tolist())) == \
-                set(zip(source[keep].tolist(), target[keep].tolist()))
+            assert set(zip(white[rows].tolist(), names[cols].tolist(), strict=True)) == \
+                set(zip(source[keep].tolist(), target[keep].tolist(), strict=True))

@@ -70,7 +70,7 @@ def test_one_phantom_in_every_format_and_orientation_gives_the_same_pictures(tmp
         if code != "LPS":                       # without reorienting, the stored order shows: the test can fail
             assert not np.array_equal(pictures(files[1], reorient=False)[0], expected[0])
         for path in files:
-            for got, want in zip(pictures(path), expected):
+            for got, want in zip(pictures(path), expected, strict=True):
                 assert np.array_equal(np.isfinite(got), np.isfinite(want)), path
                 assert np.allclose(got[np.isfinite(got)], want[np.isfinite(want)], atol=1e-5), path
 
@@ -81,7 +81,7 @@ def test_headerless_inputs_take_an_orientation_code(tmp_path):
     np.save(tmp_path / "rai.npy", values)
     np.save(tmp_path / "canonical.npy", canonical)
     expected = pictures(tmp_path / "canonical.npy", spacing=SPACING)
-    for got, want in zip(pictures(tmp_path / "rai.npy", spacing=spacing, orientation="RAI"), expected):
+    for got, want in zip(pictures(tmp_path / "rai.npy", spacing=spacing, orientation="RAI"), expected, strict=True):
         assert np.array_equal(got, want)
     kept = load_segments(tmp_path / "rai.npy", ReadOptions(orientation="RAI", reorient=False),
                          PrepOptions(threshold=500, resample=False))

@@ -24,7 +24,7 @@ def test_runs_are_sorted_inclusive_and_separated():
             assert np.all(starts <= ends)
             assert np.all(starts[1:] > ends[:-1] + 1)  # runs never touch
             line = np.zeros(40, bool)
-            for s, e in zip(starts, ends):
+            for s, e in zip(starts, ends, strict=True):
                 line[s:e + 1] = True
             assert np.array_equal(line, mask[z, y])
 
@@ -102,6 +102,6 @@ def test_labels_encoded_in_blocks_of_rows_give_the_same_runs(monkeypatch, block)
     monkeypatch.setattr(segments, "_BLOCK_VOXELS", block)
     encoded = segments.encode_labels(values)
     again = np.zeros(values.size, int)
-    for row, start, end, label in zip(encoded.run_rows(), encoded.starts, encoded.ends, encoded.labels):
+    for row, start, end, label in zip(encoded.run_rows(), encoded.starts, encoded.ends, encoded.labels, strict=True):
         again[row * 6 + start:row * 6 + end + 1] = label
     assert np.array_equal(again.reshape(values.shape), values)

@@ -229,7 +229,7 @@ def items_from(inputs, manifest_rows, read, prepare, options, views, patterns, p
         raise InputError("no inputs: give paths, globs or a manifest", parameter="inputs")
     names = _unique_names([row["input"] for row in rows])
     items = []
-    for row, name in zip(rows, names):
+    for row, name in zip(rows, names, strict=True):
         try:
             item_views = views
             if str(row.get("views") or "").strip():

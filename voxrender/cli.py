@@ -424,7 +424,7 @@ def _describe_labels(values, stored):
     found, counts = np.unique(np.asarray(values), return_counts=True)
     table = colours.label_colours([int(v) for v in found if v], stored)
     return {"labels": {int(v): {"name": table[int(v)][0], "colour": list(table[int(v)][1]), "voxels": int(c)}
-                       for v, c in zip(found, counts) if v}}
+                       for v, c in zip(found, counts, strict=True) if v}}
 
 
 class _BatchBar:

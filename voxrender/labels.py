@@ -83,7 +83,7 @@ def label_image(segments, image, clip=None):
     corners = np.array(list(np.ndindex(2, 2, 2)))     # the (at most 8) cubes a point can lie on
     candidates = low[None] + corners[:, None]          # (8, N, 3)
     found = label_at(segments, *candidates.reshape(-1, 3).T).reshape(len(corners), -1)   # one look-up for all
-    for voxel, label in zip(candidates, found):
+    for voxel, label in zip(candidates, found, strict=True):
         label[(voxel > high).any(axis=1)] = 0
         if clip is not None:
             label[~clip.keeps(*voxel.T, view, shape)] = 0
@@ -105,4 +105,4 @@ def label_pixels(labels):
     {1: 1, 3: 3}
     """
     values, counts = np.unique(labels[labels > 0], return_counts=True)
-    return {int(v): int(c) for v, c in zip(values, counts)}
+    return {int(v): int(c) for v, c in zip(values, counts, strict=True)}

@@ -122,7 +122,7 @@ def band_voxels(mask, slices=16):
         band = surface_band(mask[below:above])[first - below:first - below + last - first]
         z, y, x = np.unravel_index(np.flatnonzero(band), band.shape)
         found.append((z + first, y, x))
-    return tuple(np.concatenate(part) for part in zip(*found)) if found else (np.zeros(0, np.int64),) * 3
+    return tuple(np.concatenate(part) for part in zip(*found, strict=True)) if found else (np.zeros(0, np.int64),) * 3
 
 
 @dataclass
@@ -181,7 +181,7 @@ class SurfaceNormals:
         # that a corner there, whatever the look-up below finds for it, counts for nothing
         (x0, x1), (y0, y1), (z0, z1) = (
             ((1 - f) * ((low >= 0) & (low < size)), f * ((low >= -1) & (low < size - 1)))
-            for low, f, size in zip(base.T, (points - base).astype(np.float32).T, (nx, ny, nz)))
+            for low, f, size in zip(base.T, (points - base).astype(np.float32).T, (nx, ny, nz), strict=True))
         rows = np.stack([z0 * y0, z0 * y1, z1 * y0, z1 * y1])                      # the rows (dz, dy): (4, N)
         dz, dy = np.array([0, 0, 1, 1])[:, None], np.array([0, 1, 0, 1])[:, None]
         # the four rows around each point, all looked up at once; voxel x + 1 of a row, when present, sorts

@@ -78,7 +78,7 @@ def code_of(direction):
     'RAS'
     """
     axis, sign, _ = nearest_axes(direction)
-    return "".join((_POSITIVE if s > 0 else _NEGATIVE)[a] for a, s in zip(axis, sign))
+    return "".join((_POSITIVE if s > 0 else _NEGATIVE)[a] for a, s in zip(axis, sign, strict=True))
 
 
 def to_canonical(values, spacing, direction, source="the header"):

@@ -90,7 +90,7 @@ def crop(text):
         raise InputError(f"{text!r} must be x0:x1,y0:y1,z0:z1 (parts may be empty, e.g. ':,:,10:50')",
                          parameter="crop")
     result = []
-    for axis, part in zip("xyz", parts):
+    for axis, part in zip("xyz", parts, strict=True):
         lo, sep, hi = part.partition(":")
         if not sep and part.strip():
             raise InputError(f"{text!r}: {axis} range {part!r} needs a colon, as in {part}:", parameter="crop")

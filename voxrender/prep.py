@@ -70,7 +70,7 @@ def crop(values, region=None):
         return values
     if len(region) != 3 or not all(isinstance(r, slice) and r.step in (None, 1) for r in region):
         raise InputError(f"{region!r} must be three slices (z, y, x) without steps", parameter="crop")
-    for axis, part, n in zip("zyx", region, values.shape):
+    for axis, part, n in zip("zyx", region, values.shape, strict=True):
         lo = 0 if part.start is None else part.start
         hi = n if part.stop is None else part.stop
         if not 0 <= lo < hi <= n:
@@ -93,7 +93,7 @@ def resampled_shape(shape, spacing, voxel):
     >>> resampled_shape((93, 10, 10), (0.64, 0.64, 1.0), 0.64)
     (144, 10, 10)
     """
-    return tuple(_grid_count(n, s, voxel) for n, s in zip(shape, spacing[::-1]))
+    return tuple(_grid_count(n, s, voxel) for n, s in zip(shape, spacing[::-1], strict=True))
 
 
 def _resample_slices(values, spacing, voxel, progress=None):
@@ -252,7 +252,7 @@ def _windowed(values, spacing, windows, voxel, resample, progress):
     voxel, out_shape = _grid(values.shape, spacing, voxel, resample)
     planes = _resample_slices(values, spacing, voxel, progress) if out_shape is not None else values
     labels = np.empty(out_shape or values.shape, np.uint8)
-    for layer, plane in zip(labels, planes):
+    for layer, plane in zip(labels, planes, strict=True):
         windows[0].select(plane, out=layer.view(bool))     # writes 0 and 1
         for number, window in enumerate(windows[1:], 2):
             layer[window.select(plane)] = number
@@ -339,7 +339,7 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
     if out_shape is not None:
         # the input voxel nearest each grid point (labels cannot be interpolated)
         nearest = [np.minimum(np.rint(np.arange(n) * voxel / s).astype(np.int64), m - 1)
-                   for n, s, m in zip(out_shape, spacing[::-1], values.shape)]
+                   for n, s, m in zip(out_shape, spacing[::-1], values.shape, strict=True)]
         values = np.asarray(values)[np.ix_(*nearest)]
         spacing = (voxel, voxel, voxel)
     labels = np.where(np.isin(values, chosen), values, 0).astype(np.uint16)

@@ -144,7 +144,7 @@ def fit_scale(shape, size, box=None):
     if box is None:
         return min(size) / math.sqrt(sum(n * n for n in shape))
     centre = [(n - 1) / 2 for n in shape]
-    reach = [max(abs(lo - 0.5 - c), abs(hi + 0.5 - c)) for (lo, hi), c in zip(box, centre)]
+    reach = [max(abs(lo - 0.5 - c), abs(hi + 0.5 - c)) for (lo, hi), c in zip(box, centre, strict=True)]
     return min(size) / (2 * math.sqrt(sum(r * r for r in reach)))
 
 

@@ -51,7 +51,7 @@ class Clip:
         ((0, 5), (0, 5), (2, 9))
         """
         limited = []
-        for (lo, hi), bounds in zip(box, (self.z, self.y, self.x)):
+        for (lo, hi), bounds in zip(box, (self.z, self.y, self.x), strict=True):
             if bounds is not None:
                 lo = lo if bounds[0] is None else max(lo, bounds[0])
                 hi = hi if bounds[1] is None else min(hi, bounds[1] - 1)

@@ -113,7 +113,7 @@ def _object_box(segments, clip=None):
     (z0, z1), (y0, y1), (x0, x1) = segments.bounding_box()
     box = [[x0, x1], [y0, y1], [z0, z1]]
     if clip is not None:
-        for bounds, limits in zip((clip.x, clip.y, clip.z), box):
+        for bounds, limits in zip((clip.x, clip.y, clip.z), box, strict=True):
             if bounds is not None:
                 if bounds[0] is not None:
                     limits[0] = max(limits[0], bounds[0])

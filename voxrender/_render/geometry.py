@@ -142,7 +142,7 @@ def paint_boxes(view, shape, x, y, z, half=(0.5, 0.5, 0.5), count_scanlines=Fals
         owner = np.nonzero(hit)[0]
         parts.append(((np.broadcast_to(j, hit.shape) * width + np.broadcast_to(i, hit.shape))[hit],
                       (entry + zc[:, None, None])[hit], owner + start if start else owner))
-    pixels, depths, owner = (np.concatenate(p) for p in zip(*parts)) if len(parts) > 1 else parts[0]
+    pixels, depths, owner = (np.concatenate(p) for p in zip(*parts, strict=True)) if len(parts) > 1 else parts[0]
     return Fragments(pixels, depths, owner, scanlines)
 
 

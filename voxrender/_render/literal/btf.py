@@ -31,7 +31,7 @@ def render_btf_literal(segments, view, clip=None):
     for z in farthest_first(nz, r[2][2]):
         slice_has_voxels = False
         for y in farthest_first(ny, r[2][1]):
-            runs = [kept for start, end in zip(*segments.row(z, y))
+            runs = [kept for start, end in zip(*segments.row(z, y), strict=True)
                     if (kept := geometry.clip_run(clip, r, z, y, start, end, centre))]
             if not runs:
                 continue

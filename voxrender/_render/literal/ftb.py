@@ -128,7 +128,7 @@ def render_ftb_literal(segments, view, clip=None):
     # The dynamic screen starts as the projection of the object's bounding box (within the clip limits).
     (z0, z1), (y0, y1), (x0, x1) = segments.bounding_box()
     limits = [[x0, x1], [y0, y1], [z0, z1]]
-    for bounds, pair in zip((clip.x, clip.y, clip.z) if clip is not None else (None,) * 3, limits):
+    for bounds, pair in zip((clip.x, clip.y, clip.z) if clip is not None else (None,) * 3, limits, strict=True):
         if bounds is not None:
             pair[0] = pair[0] if bounds[0] is None else max(pair[0], bounds[0])
             pair[1] = pair[1] if bounds[1] is None else min(pair[1], bounds[1] - 1)
@@ -156,7 +156,7 @@ def render_ftb_literal(segments, view, clip=None):
         slice_read = False
         for inner in (y_order if outer_is_z else z_order):
             z, y = (outer, inner) if outer_is_z else (inner, outer)
-            runs = list(zip(*segments.row(z, y)))
+            runs = list(zip(*segments.row(z, y), strict=True))
             if not x_ascending:
                 runs = runs[::-1]
             runs = [kept for start, end in runs if (kept := geometry.clip_run(clip, r, z, y, start, end, centre))]

@@ -163,7 +163,7 @@ def clip_mask(mask, clip, r):
         return mask
     nz, ny, nx = mask.shape
     centre = ((nx - 1) / 2, (ny - 1) / 2, (nz - 1) / 2)
-    for z, y in zip(*np.nonzero(mask.any(axis=2))):
+    for z, y in zip(*np.nonzero(mask.any(axis=2)), strict=True):
         row = np.flatnonzero(mask[z, y])
         mask[z, y] = False
         for x in row:
