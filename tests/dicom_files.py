@@ -79,7 +79,8 @@ def write_enhanced(path, volume, spacing=(0.5, 0.6, 2.0), slope=1, intercept=-10
     for z in order:
         group, position, rescale = Dataset(), Dataset(), Dataset()
         if positions:
-            position.ImagePositionPatient = [float(v) for v in np.array([0, 0, -100]) + z * spacing[2] * direction[:, 2]]
+            corner = np.array([0, 0, -100]) + z * spacing[2] * direction[:, 2]
+            position.ImagePositionPatient = [float(v) for v in corner]
             group.PlanePositionSequence = Sequence([position])
         rescale.RescaleSlope, rescale.RescaleIntercept, rescale.RescaleType = slope, intercept, "HU"
         group.PixelValueTransformationSequence = Sequence([rescale])

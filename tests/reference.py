@@ -109,7 +109,8 @@ def ties(mask, alpha, beta, gamma, size, scale, middle=(0.0, 0.0)):
                                         middle=middle)
     width = size[1]
     through = set(zip(inner.tolist(), inner_owners.tolist(), strict=True))
-    surface_only = np.array([(p, o) not in through for p, o in zip(pixels.tolist(), owners.tolist(), strict=True)], bool)
+    surface_only = np.array([(p, o) not in through
+                             for p, o in zip(pixels.tolist(), owners.tolist(), strict=True)], bool)
     tie = np.zeros(size[0] * width, bool)
     tie[pixels[surface_only]] = True
     return tie.reshape(size)

@@ -20,7 +20,7 @@ def test_every_public_name_resolves_to_what_its_module_defines():
             assert value is getattr(module, name), name
     assert set(voxrender.__all__) <= set(dir(voxrender))
     with pytest.raises(AttributeError, match="no attribute 'nothing'"):
-        voxrender.nothing
+        _ = voxrender.nothing
 
 
 def test_import_voxrender_loads_no_module_until_a_name_is_used():

@@ -180,7 +180,8 @@ def test_info_lists_the_labels_of_a_label_map(label_file):
     assert result.exit_code == 0, result.output
     labels = json.loads(result.output)["labels"]
     expected = np.unique(nested(), return_counts=True)
-    assert {int(k): v["voxels"] for k, v in labels.items()} == {int(v): int(c) for v, c in zip(*expected, strict=True) if v}
+    assert {int(k): v["voxels"] for k, v in labels.items()} == {int(v): int(c)
+                                                                for v, c in zip(*expected, strict=True) if v}
 
 
 def test_label_options_with_a_single_object_are_refused(tmp_path, ct_file, label_file):

@@ -95,7 +95,8 @@ def test_the_vxs_keeps_the_normals(tmp_path):
     segments.save(encoded, tmp_path / "ball.vxs")
     loaded = segments.load(tmp_path / "ball.vxs")
     assert np.array_equal(loaded.normals.index, encoded.normals.index)
-    assert np.array_equal(loaded.normals.packed, encoded.normals.packed) and loaded.meta["normals_from"] == "grey values"
+    assert np.array_equal(loaded.normals.packed, encoded.normals.packed)
+    assert loaded.meta["normals_from"] == "grey values"
     encoded.normals = None
     segments.save(encoded, tmp_path / "old.vxs")             # a file without normals still loads
     assert segments.load(tmp_path / "old.vxs").normals is None

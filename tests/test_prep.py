@@ -115,7 +115,8 @@ def test_a_window_keeps_both_bounds_through_resampling():
         assert column.tolist() == ([False, True, True, False] if not resample else
                                    [False, False, True, True, True, False, False])
         assert info["threshold"] == "200:300"
-    assert prep.binarize(Volume(values, (1, 1, 1)), Window(None, 100))[0][:, 1, 1].tolist() == [True, False, False, False]
+    below = prep.binarize(Volume(values, (1, 1, 1)), Window(None, 100))[0]
+    assert below[:, 1, 1].tolist() == [True, False, False, False]
 
 
 def test_a_label_map_is_resampled_to_the_nearest_label():

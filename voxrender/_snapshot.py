@@ -65,7 +65,7 @@ def snapshot(source, *, threshold=None, view="anterior", labels=None, spacing=No
     render_options = RenderOptions(method=method, size=size, scale=scale, **options)
     selection = _labels(labels, spacing)
     if threshold is None and selection is None:      # a mask is its ones; grey values split by Otsu's threshold
-        threshold = 1 if getattr(source, "dtype", None) == bool else otsu_threshold
+        threshold = 1 if getattr(source, "dtype", None) == np.bool_ else otsu_threshold
     prepare = PrepOptions(threshold=threshold, labels=selection)
     if isinstance(source, (str, Path)):
         read = ReadOptions(spacing=None if spacing is None else check_spacing(spacing))

@@ -137,6 +137,7 @@ class Item:
 
     @property
     def method(self):
+        """The name of the item's renderer."""
         return self.options.method
 
     def label_picture(self, picture_path, label):
@@ -146,9 +147,11 @@ class Item:
         return picture_path.with_name(f"{picture_path.stem}-label{label}{picture_path.suffix}")
 
     def outputs(self, out_dir, view, index):
+        """The :class:`~voxrender._picture.Outputs` of one view of the item, in ``out_dir``."""
         return self.patterns.outputs(out_dir, name=self.name, view=view.label, method=self.method, index=index)
 
     def output(self, out_dir, view, index):
+        """Where the picture of one view of the item goes."""
         return self.outputs(out_dir, view, index).picture
 
 

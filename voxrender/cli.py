@@ -448,7 +448,8 @@ class _BatchBar:
 @click.argument("inputs", nargs=-1, metavar="[INPUT|GLOB]...")
 @click.option("-o", "--out", "out_dir", required=True, type=click.Path(path_type=Path),
               help="Folder for the pictures and summary.csv.")
-@click.option("--manifest", type=click.Path(path_type=Path), help="CSV or TOML: input, threshold, views, method, output.")
+@click.option("--manifest", type=click.Path(path_type=Path),
+              help="CSV or TOML: input, threshold, views, method, output.")
 @_read_options_decorator
 @_prep_options_decorator
 @click.option("--view", "views", multiple=True, type=click.Choice(list(PRESETS)), help="A named view (repeatable).")
@@ -467,7 +468,8 @@ class _BatchBar:
 @click.option("--fps", default=12, show_default=True, type=click.IntRange(1, 120))
 @click.option("--jobs", type=click.IntRange(1, 1024), help="Worker processes (default: the machine's cores).")
 @click.option("--scheduler", metavar="ADDRESS|local", help="Run on a Dask cluster ('local' starts one here).")
-@click.option("--cache", type=click.Path(path_type=Path), help="Cache of encoded objects (default OUT/.voxrender-cache).")
+@click.option("--cache", type=click.Path(path_type=Path),
+              help="Cache of encoded objects (default OUT/.voxrender-cache).")
 def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pattern, per_label, make_sheet, gif,
                   mp4, fps, jobs, scheduler, cache, **options):
     """Render many inputs from many views: pictures, summary.csv, index.html, and optionally a sheet or animation.
@@ -549,7 +551,8 @@ def sheet_command(inputs, output_path, views, angles, methods, per_label, **opti
 @click.option("--trials", default=100_000, show_default=True, type=click.IntRange(100, 10_000_000),
               help="Random pairs of end points.")
 @click.option("--seed", default=0, show_default=True, type=int)
-@click.option("--side", default=100, show_default=True, type=click.IntRange(2, 100_000), help="Side of the voxel space.")
+@click.option("--side", default=100, show_default=True, type=click.IntRange(2, 100_000),
+              help="Side of the voxel space.")
 def lines_command(table, trials, seed, side):
     """Discrete 3-D lines: average d6, d18, d26 of random lines and their ratios (Cohen-Or and Kaufman)."""
     if not table:

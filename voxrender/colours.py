@@ -71,7 +71,7 @@ def palette(labels):
 
 
 def read_colour_table(path):
-    """A colour table file as ``{label: (name, (r, g, b))}``.
+    r"""A colour table file as ``{label: (name, (r, g, b))}``.
 
     Formats, told by the suffix: ``.csv`` (columns label, name, r, g, b; a header row is allowed), ``.json``
     (a list of objects with ``label``, ``name`` and ``r, g, b`` or ``colour``/``color``), 3D Slicer's ``.ctbl``
@@ -82,7 +82,7 @@ def read_colour_table(path):
     --------
     >>> import tempfile, pathlib
     >>> path = pathlib.Path(tempfile.mkdtemp()) / "t.csv"
-    >>> _ = path.write_text("label,name,r,g,b\\n1,liver,200,100,50\\n")
+    >>> _ = path.write_text("label,name,r,g,b\n1,liver,200,100,50\n")
     >>> read_colour_table(path)
     {1: ('liver', (200, 100, 50))}
     """

@@ -110,10 +110,12 @@ class Frame:
         return b * (x - self.offset[0]) - a * (y - self.offset[1])
 
     def f_xz(self, x, z):
+        """Implicit equation of the line's projection on the frame's xz plane."""
         a, _, c = self.extent
         return c * (x - self.offset[0]) - a * (z - self.offset[2])
 
     def f_zy(self, z, y):
+        """Implicit equation of the line's projection on the frame's zy plane."""
         _, b, c = self.extent
         return b * (z - self.offset[2]) - c * (y - self.offset[1])
 
@@ -386,7 +388,7 @@ class Stepper:
         k = np.where((count > 0) & ~self.six & (self.e_y >= b - a) & (self.e_y < b) & (self.e_z >= c - a) &
                      (self.e_z < c) & (a > 0), count, 0)
         safe_a = np.where(a > 0, a, 1.0)
-        moves, errors = [], []
+        moves = []
         for e, minor in ((self.e_y, b), (self.e_z, c)):
             ups = np.floor((e + (k - 1) * minor + a) / safe_a).astype(np.int64)
             after = e + k * minor - ups * a

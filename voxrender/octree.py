@@ -56,6 +56,7 @@ class Adjacency(NamedTuple):
 
     @classmethod
     def from_pairs(cls, source, target, rows):
+        """The table of ``rows`` rows holding, in row ``source[i]``, ``target[i]`` (in the pairs' order)."""
         index = np.int32 if max(rows, len(target)) < 2 ** 31 else np.int64
         order = np.argsort(source, kind="stable")
         indptr = np.zeros(rows + 1, index)
@@ -63,6 +64,7 @@ class Adjacency(NamedTuple):
         return cls(indptr, np.asarray(target, index)[order])
 
     def row(self, k):
+        """The neighbours of row ``k``."""
         return self.indices[self.indptr[k]:self.indptr[k + 1]]
 
     def neighbours(self, rows):

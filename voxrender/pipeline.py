@@ -33,6 +33,7 @@ class ReadOptions:
     reorient: bool = True
 
     def read(self, path, progress=None):
+        """The :class:`~voxrender.io.Volume` in ``path``, read as these options say."""
         return io.read_volume(path, format=self.format, raw=self.raw, spacing=self.spacing, series=self.series,
                               frame=self.frame, orientation=self.orientation, reorient=self.reorient,
                               progress=progress)

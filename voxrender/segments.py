@@ -78,10 +78,12 @@ class Segments:
 
     @property
     def segment_count(self):
+        """How many runs (segments) the object has."""
         return int(self.offsets[-1])
 
     @property
     def voxel_count(self):
+        """How many voxels the object has."""
         return int(np.sum(self.ends.astype(np.int64) - self.starts + 1))
 
     def run_rows(self):

@@ -265,7 +265,7 @@ class View:
                 (np.asarray(y) - self.centre[1]) * self.scale + height / 2 - 0.5)
 
     def fitted(self, shape, box=None, fit="object", margin=0.05):
-        """This view with ``scale`` set, when it is ``None``.
+        """The view with ``scale`` set, when it is ``None``.
 
         ``fit="object"`` (with ``box``, the object's bounding box ``((z0, z1), (y0, y1), (x0, x1))``, inclusive
         voxel indices): the scale and centre that frame the box as this view sees it, with a ``margin`` on
