@@ -1,5 +1,8 @@
 """voxrender.io.nrrd: NRRD, attached or detached, and folders of NRRD files."""
 
+import bz2
+import gzip
+
 import numpy as np
 import pytest
 from formats import refused_cuts
@@ -86,3 +89,105 @@ def test_cut_nrrd_files_are_bad_input(tmp_path, encoding):
     data = np.random.default_rng(0).integers(0, 999, (7, 8, 9)).astype(np.int16)
     nrrd.write(str(tmp_path / "v.nrrd"), data, {"encoding": encoding}, index_order="C")
     assert refused_cuts(tmp_path / "v.nrrd", lambda: io.read_volume(tmp_path / "v.nrrd")) >= 30
+
+
+def _nrrd(path, fields, payload):
+    """A NRRD written by hand: a header pynrrd would refuse to write, and the bytes after it."""
+    path.write_bytes(("NRRD0004\n" + "".join(f"{key}: {value}\n" for key, value in fields.items()) + "\n").encode()
+                     + payload)
+    return path
+
+
+INT16 = {"type": "int16", "endian": "little", "dimension": 3}
+
+
+@pytest.mark.parametrize("encoding, payload", [("raw", bytes(64)), ("gzip", gzip.compress(bytes(64))),
+                                               ("bzip2", bz2.compress(bytes(64)))])
+def test_a_header_promising_more_than_the_file_holds_says_both(tmp_path, encoding, payload):
+    """30000³ int16 over 64 bytes: the file holds 64 bytes of the 54 TB its header promises (was 'out of memory')."""
+    path = _nrrd(tmp_path / "huge.nrrd", {**INT16, "sizes": "30000 30000 30000", "encoding": encoding}, payload)
+    with pytest.raises(InputError, match=r"holds 64 bytes of voxels, of the 54 TB its header promises"):
+        io.read_volume(path)
+
+
+@pytest.mark.parametrize("encoding, compress", [("raw", bytes), ("gzip", gzip.compress), ("bzip2", bz2.compress)])
+def test_voxels_short_or_long_are_refused_with_both_sizes(tmp_path, encoding, compress):
+    fields = {**INT16, "sizes": "4 4 4", "encoding": encoding}
+    with pytest.raises(InputError, match=r"holds 100 bytes of voxels, of the 128 bytes its header promises"):
+        io.read_volume(_nrrd(tmp_path / "short.nrrd", fields, compress(bytes(100))))
+    with pytest.raises(InputError, match=r"holds (200 bytes|more than the 128 bytes) of voxels"):
+        io.read_volume(_nrrd(tmp_path / "long.nrrd", fields, compress(bytes(200))))
+
+
+def test_a_gzip_bomb_is_inflated_no_further_than_promised(tmp_path, monkeypatch):
+    from voxrender.io import _shared
+
+    inflated = []
+    real = _shared._inflated_chunks
+
+    def counted(*args):
+        for chunk in real(*args):
+            inflated.append(len(chunk))
+            yield chunk
+
+    monkeypatch.setattr(_shared, "_inflated_chunks", counted)
+    bomb = gzip.compress(bytes(200_000_000))                  # 200 MB of zeros in 200 kB
+    path = _nrrd(tmp_path / "bomb.nrrd", {**INT16, "sizes": "10 10 10", "encoding": "gzip"}, bomb)
+    with pytest.raises(InputError, match="holds more than the 2 kB of voxels its header promises"):
+        io.read_volume(path)
+    assert sum(inflated) <= 2001
+
+
+def test_a_volume_too_big_for_memory_is_refused_with_its_size(tmp_path, monkeypatch):
+    from voxrender.io import _shared
+
+    monkeypatch.setattr(_shared, "free_memory", lambda: 1000)
+    for encoding in ("raw", "gzip"):
+        payload = bytes(2 * 20 * 20 * 20)
+        path = _nrrd(tmp_path / f"{encoding}.nrrd", {**INT16, "sizes": "20 20 20", "encoding": encoding},
+                     gzip.compress(payload) if encoding == "gzip" else payload)
+        with pytest.raises(InputError, match=r"its 20x20x20 int16 voxels take 16 kB, more than the 1 kB of memory "
+                                             "free here") as info:
+            io.read_volume(path)
+        assert info.value.parameter is None
+
+
+@pytest.mark.parametrize("directions, message", [
+    ("(1,0) (0,1) (0,0)", "its space directions are 3 vectors of 2 numbers; a 3-D file in a 3-D space needs 3"),
+    ("(1,0,0) (0,1,0) (0,0,0)", r"the space direction of its axis 2 is \[0.0, 0.0, 0.0\], which has no length"),
+    ("(1,0,0) (0,1,0) (0,0,nan)", "the space direction of its axis 2 is"),
+    ("none (0,1,0) (0,0,1)", "its axis 0 has no space direction"),
+    ("(1,0,0) (1,0,0) (0,0,1)", "not orthogonal")])
+def test_degenerate_space_directions_are_bad_input(tmp_path, directions, message):
+    """Was a matmul shape error (exit 1), or a spacing of nan after a warning."""
+    fields = {**INT16, "space": "left-posterior-superior", "sizes": "4 4 4", "space directions": directions,
+              "encoding": "raw"}
+    with pytest.raises(InputError, match=message):
+        io.read_volume(_nrrd(tmp_path / "v.nrrd", fields, bytes(128)))
+
+
+def test_a_4d_nrrd_of_one_volume_gives_it(tmp_path):
+    """Was refused as 'holds 1 volumes (4-D)'."""
+    import nrrd
+
+    nrrd.write(str(tmp_path / "one.nrrd"), np.full((1, 1, 1, 1), 7, np.int16),
+               {"space": "left-posterior-superior", "kinds": ["domain", "domain", "domain", "list"],
+                "space directions": [[1, 0, 0], [0, 1, 0], [0, 0, 1], [np.nan] * 3]}, index_order="C")
+    assert io.read_volume(tmp_path / "one.nrrd").values.tolist() == [[[7]]]
+    assert io.read_volume(tmp_path / "one.nrrd", frame=0).values.tolist() == [[[7]]]
+
+
+@pytest.mark.parametrize("fields, message", [
+    ({"dimension": 2, "sizes": "8 8", "kinds": "list domain"}, "holds a 2-D array .* not a 3-D spatial volume"),
+    ({"dimension": 3, "sizes": "3 4 4", "kinds": "RGB-color domain domain"},
+     "its axis 0 is of kind 'RGB-color', so it is not a 3-D spatial volume")])
+def test_a_nrrd_that_is_not_a_spatial_volume_is_named(tmp_path, fields, message):
+    path = _nrrd(tmp_path / "v.nrrd", {"type": "uint8", "encoding": "raw", **fields},
+                 bytes(int(np.prod([int(n) for n in fields["sizes"].split()]))))
+    with pytest.raises(InputError, match=message):
+        io.read_volume(path)
+
+
+def test_a_header_without_its_required_fields(tmp_path):
+    with pytest.raises(InputError, match="its NRRD header lacks encoding, sizes"):
+        io.read_volume(_nrrd(tmp_path / "v.nrrd", {"type": "uint8", "dimension": 3}, bytes(8)))

@@ -115,7 +115,7 @@ def info(path, options):
 
 # Each reader's call into its library (or, for MetaImage, which has none, its own header parser).
 LIBRARY_CALLS = {"images": "imageio.v3.imread", "tiff": "imageio.v3.imread", "dicom": "pydicom.dcmread",
-                 "nifti": "nibabel.load", "nrrd": "nrrd.read", "npy": "numpy.load", "raw": "numpy.fromfile",
+                 "nifti": "nibabel.load", "nrrd": "nrrd.read_header", "npy": "numpy.load", "raw": "numpy.fromfile",
                  "metaimage": "voxrender.io.metaimage._metaimage_direction"}
 
 

@@ -4,7 +4,11 @@ the listing of folders, the filling of stacks and the checks they have in common
 
 from __future__ import annotations
 
+import bz2
+import math
+import os
 import re
+import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -197,13 +201,162 @@ def fill_stack(items, read_slice, label, progress):
 
 
 def check_frame(path, frame, count=None):
-    """Check the ``frame`` asked of a 4-D file of ``count`` volumes (``None``: a 3-D file, which takes none)."""
+    """The ``frame`` to read of a 4-D file of ``count`` volumes (``None``: a 3-D file, which takes none), checked;
+    a 4-D file of one volume gives it without being asked.
+    """
     if count is None:
         if frame is not None:
             raise InputError(f"{path} holds one volume; a frame number applies to 4-D files", parameter="frame")
+    elif count == 1 and frame is None:
+        return 0
     elif frame is None:
         raise InputError(f"{path} holds {count} volumes (4-D); choose one with a frame number 0 to {count - 1}",
                          parameter="frame")
     elif not 0 <= frame < count:
         raise InputError(f"{frame} is not a volume of {path}, which holds {count} (0 to {count - 1})",
                          parameter="frame")
+    return frame
+
+
+# ---------------------------------------------------------------- sizes, checked before allocating
+# A header can promise any size: what it promises is compared with what the file holds, and with the memory this
+# machine has free, before the voxels are allocated; compressed voxels are inflated no further than promised.
+
+CHUNK = 1 << 22          # bytes read or inflated at a time
+
+
+def promised_bytes(shape, dtype):
+    """The bytes of an array of ``shape`` and ``dtype``, in Python integers (no overflow, whatever a header says).
+
+    >>> promised_bytes((30000, 30000, 30000), np.int16)
+    54000000000000
+    """
+    return math.prod(int(n) for n in shape) * np.dtype(dtype).itemsize
+
+
+def in_words(nbytes):
+    """A size for a message.
+
+    >>> in_words(54000000000000), in_words(64), in_words(1500000)
+    ('54 TB', '64 bytes', '1.5 MB')
+    """
+    if nbytes < 1000:
+        return f"{nbytes} bytes"
+    power = min(int(math.log10(nbytes) // 3), 6)
+    return f"{nbytes / 1000 ** power:.3g} {'kMGTPE'[power - 1]}B"
+
+
+def free_memory():
+    """The bytes this process can still allocate: the memory the system has available, within the process's
+    address-space limit (``RLIMIT_AS``) when it has one.
+    """
+    import resource
+
+    free = None
+    try:
+        with open("/proc/meminfo") as f:
+            free = next(int(line.split()[1]) * 1024 for line in f if line.startswith("MemAvailable:"))
+    except (OSError, StopIteration, ValueError, IndexError):
+        try:
+            free = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+        except (ValueError, OSError, AttributeError):
+            free = None
+    limit = resource.getrlimit(resource.RLIMIT_AS)[0]
+    if limit not in (resource.RLIM_INFINITY, -1):
+        try:
+            with open("/proc/self/statm") as f:
+                used = int(f.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+        except (OSError, ValueError, IndexError):
+            used = 0
+        free = min(free if free is not None else limit, max(limit - used, 0))
+    return free if free is not None else 1 << 62
+
+
+def check_fits(shape, dtype, source, held=None):
+    """Refuse, before allocating it, a volume of ``shape`` and ``dtype`` that this machine's free memory cannot hold.
+
+    ``held(limit)`` (optional) counts the bytes a compressed file holds (up to ``limit`` + 1): it is asked only
+    when the volume is too big, so that a file holding less than its header promises is named as such.
+
+    Examples
+    --------
+    >>> check_fits((2, 3, 4), np.int16, "v.nii")
+    48
+    """
+    nbytes = promised_bytes(shape, dtype)
+    free = free_memory()
+    if nbytes > free:
+        if held is not None:
+            check_holds(source, nbytes, held(nbytes))
+        raise InputError(f"{source}: its {'x'.join(str(int(n)) for n in shape)} {np.dtype(dtype).name} voxels take "
+                         f"{in_words(nbytes)}, more than the {in_words(free)} of memory free here; voxrender reads a "
+                         "volume whole, so cut it down to a subregion or coarser voxels first")
+    return nbytes
+
+
+def check_holds(source, promised, held, what="voxels", exact=False):
+    """Refuse a file that holds fewer bytes of ``what`` than its header promises (or, ``exact``, other than it
+    promises), with both numbers.
+    """
+    if held < promised:
+        raise InputError(f"{source} holds {in_words(max(held, 0))} of {what}, of the {in_words(promised)} its header "
+                         "promises; the file is cut short or its header is damaged")
+    if exact and held > promised:
+        raise InputError(f"{source} holds {in_words(held)} of {what}, more than the {in_words(promised)} its header "
+                         "promises; the header is damaged")
+
+
+def inflate(stream, codec, promised, source):
+    """Exactly ``promised`` bytes inflated from the rest of ``stream`` (a binary file) in ``codec`` (``"gzip"``,
+    ``"bzip2"``, or ``"zlib"``: zlib or gzip), inflating no more than that; a stream that ends short or runs long
+    is refused with both numbers.
+
+    Examples
+    --------
+    >>> import io
+    >>> len(inflate(io.BytesIO(zlib.compress(bytes(10))), "zlib", 10, "v.mha"))
+    10
+    """
+    data = bytearray()
+    try:
+        for chunk in _inflated_chunks(stream, codec, promised + 1):
+            data += chunk
+    except (zlib.error, OSError, EOFError) as exc:          # what zlib and bz2 raise for a garbled stream
+        raise InputError(f"the {codec} stream of {source} is damaged after {len(data):,} bytes: "
+                         f"{first_line(exc)}") from None
+    if len(data) > promised:
+        raise InputError(f"the {codec} stream of {source} holds more than the {in_words(promised)} of voxels its "
+                         "header promises; the header is damaged")
+    check_holds(f"the {codec} stream of {source}", promised, len(data))
+    return data
+
+
+def inflated_size(stream, codec, limit):
+    """How many bytes the rest of ``stream`` inflates to, counted without keeping them, up to ``limit`` + 1."""
+    size = 0
+    try:
+        for chunk in _inflated_chunks(stream, codec, limit + 1):
+            size += len(chunk)
+    except (zlib.error, OSError, EOFError):
+        pass
+    return size
+
+
+def _inflated_chunks(stream, codec, limit):
+    """The bytes inflated from ``stream`` in ``codec``, in chunks, until its compressed stream ends or ``limit``
+    bytes have come.
+    """
+    if codec == "bzip2":
+        decompressor = bz2.BZ2Decompressor()
+    else:                                    # gzip, or zlib's own format (or gzip: 32 tells them apart)
+        decompressor = zlib.decompressobj(zlib.MAX_WBITS | (16 if codec == "gzip" else 32))
+    pending, size = b"", 0
+    while not decompressor.eof and size < limit:
+        if not pending and getattr(decompressor, "needs_input", True):   # zlib hands back what it did not take
+            pending = stream.read(CHUNK)
+            if not pending:
+                return                                   # the file ends before the stream does: cut short
+        chunk = decompressor.decompress(pending, min(CHUNK, limit - size))
+        pending = getattr(decompressor, "unconsumed_tail", b"")
+        size += len(chunk)
+        yield chunk

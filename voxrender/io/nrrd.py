@@ -6,6 +6,9 @@ colours.  A folder of NRRD files is recognised, and refused with what it holds.
 
 from __future__ import annotations
 
+import contextlib
+import math
+import os
 import re
 import zlib
 
@@ -13,9 +16,25 @@ import numpy as np
 
 from .. import orient
 from ..errors import InputError
-from ._shared import Reader, Volume, check_frame, check_spacing, first_line, folder_of_volumes, volume_files
+from ._shared import (
+    Reader,
+    Volume,
+    check_fits,
+    check_frame,
+    check_holds,
+    check_spacing,
+    first_line,
+    folder_of_volumes,
+    inflate,
+    inflated_size,
+    promised_bytes,
+    volume_files,
+)
 
 SUFFIXES = (".nrrd", ".nhdr", ".seg.nrrd")
+# NRRD's names of the encodings read here (the others, text, by pynrrd), and the axis kinds of a spatial volume
+ENCODINGS = {"raw": "raw", "gzip": "gzip", "gz": "gzip", "bzip2": "bzip2", "bz2": "bzip2"}
+SPATIAL_KINDS = {"domain", "space", "time", "none", "???"}
 
 
 def read_nrrd(path, progress, frame=None):
@@ -25,26 +44,37 @@ def read_nrrd(path, progress, frame=None):
     if path.is_dir():
         raise folder_of_volumes(path, "NRRD", SUFFIXES)
     try:               # pynrrd's errors, and those of its decoders (zlib, bz2: OSError); an empty file, StopIteration
-        values, header = nrrd.read(str(path), index_order="C")
+        with open(path, "rb") as f:
+            header = nrrd.read_header(f)
+            values = _read_voxels(path, f, header)
+    except InputError:
+        raise
     except FileNotFoundError as exc:
         raise InputError(f"{path}: its data file {exc.filename or ''} is missing") from None
     except (nrrd.NRRDError, OSError, EOFError, ValueError, KeyError, TypeError, zlib.error, StopIteration) as exc:
         raise InputError(f"cannot read {path} as NRRD: {first_line(exc)}") from None
-    directions = header.get("space directions")
+    directions = _space_directions(path, header, values.ndim)
     if values.ndim == 4:
-        # the non-spatial axis: 'none' in space directions, or a list/vector kind
-        spatial = [d is not None and not (isinstance(d, float) and np.isnan(d)) and np.all(np.isfinite(d))
-                   for d in (directions if directions is not None else [None] * 4)]
-        if directions is None or sum(spatial) != 3:
+        # the non-spatial axis: 'none' in space directions
+        spatial = [d is not None for d in (directions if directions is not None else [None] * 4)]
+        if sum(spatial) != 3:
             raise InputError(f"{path} is 4-D without three spatial axes; voxrender needs a 3-D volume")
         extra = spatial.index(False)                        # in NRRD's axis order (fastest first)
-        check_frame(path, frame, values.shape[3 - extra])
+        frame = check_frame(path, frame, values.shape[3 - extra])
         values = np.take(values, frame, axis=3 - extra)
         directions = [d for d, s in zip(directions, spatial, strict=True) if s]
     else:
         check_frame(path, frame)
     if values.ndim != 3:
-        raise InputError(f"{path} holds a {values.ndim}-D array; voxrender needs a 3-D volume")
+        raise InputError(f"{path} holds a {values.ndim}-D array (a table or a picture), not a 3-D spatial volume")
+    if directions is not None and any(d is None for d in directions):
+        axis = [d is None for d in directions].index(True)
+        raise InputError(f"{path}: its axis {axis} has no space direction ({_kind(header, axis)}), so it holds "
+                         "values of another kind along it, not a 3-D spatial volume")
+    non_spatial = [k for k in range(3) if _kind(header, k) not in SPATIAL_KINDS]
+    if non_spatial:
+        raise InputError(f"{path}: its axis {non_spatial[0]} is of kind {_kind(header, non_spatial[0])!r}, so it "
+                         "is not a 3-D spatial volume")
     meta = {"spacing_from": "NRRD header"}
     space = str(header.get("space", "")).lower()
     sides = ("left", "right", "posterior", "anterior", "superior", "inferior")
@@ -77,6 +107,87 @@ def read_nrrd(path, progress, frame=None):
     if table:
         meta["label_table"] = table
     return Volume(values, check_spacing(spacing, path), meta, direction)
+
+
+def _read_voxels(path, f, header):
+    """The voxels ``header`` promises, read from ``f`` (just past the header) or its data file: raw, gzip or bzip2
+    are read here, with their sizes checked before allocating; other encodings (text) by pynrrd.
+    """
+    import nrrd
+    from nrrd.reader import _determine_datatype  # pynrrd's own table of NRRD types
+
+    missing = [key for key in ("dimension", "type", "encoding", "sizes") if key not in header]
+    if missing:
+        raise InputError(f"{path}: its NRRD header lacks {', '.join(missing)}; the header is damaged")
+    sizes = [int(n) for n in np.atleast_1d(header["sizes"])]
+    if header.get("dimension") != len(sizes) or min(sizes) < 1:
+        raise InputError(f"{path}: its sizes {sizes} must be {header.get('dimension')} positive numbers (its "
+                         "dimension); the header is damaged")
+    dtype = _determine_datatype(header)
+    encoding = ENCODINGS.get(header["encoding"])
+    data_file = header.get("data file", header.get("datafile"))
+    line_skip = int(header.get("line skip", header.get("lineskip", 0)))
+    byte_skip = int(header.get("byte skip", header.get("byteskip", 0)))
+    if line_skip < 0 or byte_skip < -1:
+        raise InputError(f"{path}: its line skip {line_skip} or byte skip {byte_skip} is negative; the header is "
+                         "damaged")
+    if encoding is None:                                    # text: what pynrrd reads is no bigger than the file
+        check_fits(sizes, dtype, path)
+        return nrrd.read_data(header, f, str(path), index_order="C")
+    if byte_skip == -1 and encoding != "raw":
+        raise InputError(f"{path}: byte skip -1 (the voxels at the end) with {encoding} data is not supported; "
+                         "give the data uncompressed")
+    source = path.parent / data_file if data_file is not None else path
+    with open(source, "rb") if data_file is not None else contextlib.nullcontext(f) as data:
+        for _ in range(line_skip):
+            data.readline()
+        nbytes = promised_bytes(sizes, dtype)
+        if encoding == "raw":
+            held = os.fstat(data.fileno()).st_size - data.tell()
+            if byte_skip == -1:
+                byte_skip = held - nbytes
+            check_holds(source, nbytes, held - max(byte_skip, 0), exact=True)
+            check_fits(sizes, dtype, source)
+            data.seek(byte_skip, os.SEEK_CUR)
+            return np.fromfile(data, dtype, count=math.prod(sizes)).reshape(sizes[::-1])
+        start = data.tell()
+        def held(limit):
+            return inflated_size(data, encoding, byte_skip + limit) - byte_skip
+
+        check_fits(sizes, dtype, source, held)
+        data.seek(start)
+        voxels = inflate(data, encoding, byte_skip + nbytes, source)
+        return np.frombuffer(voxels, dtype, offset=byte_skip).reshape(sizes[::-1])
+
+
+def _kind(header, axis):
+    """The NRRD kind of ``axis`` (fastest first), ``"domain"`` when the header gives none."""
+    kinds = header.get("kinds") or []
+    return str(kinds[axis]) if axis < len(kinds) else "domain"
+
+
+def _space_directions(path, header, ndim):
+    """The space direction of each axis (fastest first) as three finite numbers, or ``None`` for an axis that has
+    none (``none`` in the header); ``None`` when the header gives no space directions.
+    """
+    directions = header.get("space directions")
+    if directions is None:
+        return None
+    rows = np.asarray(directions, dtype=float)
+    if rows.ndim != 2 or rows.shape != (ndim, 3):
+        count, length = (rows.shape if rows.ndim == 2 else (rows.size, 1))
+        raise InputError(f"{path}: its space directions are {count} vectors of {length} numbers; a {ndim}-D file "
+                         f"in a 3-D space needs {ndim} vectors of 3 numbers")
+    found = []
+    for axis, row in enumerate(rows):
+        if np.all(np.isnan(row)):
+            found.append(None)
+        elif not np.all(np.isfinite(row)) or not np.any(row):
+            raise InputError(f"{path}: the space direction of its axis {axis} is {row.tolist()}, which has no "
+                             "length; the header is damaged")
+        else:
+            found.append(row)
+    return found
 
 
 def _segment_table(header, layer=0):
