@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN = $(VENV)/bin
 
-.PHONY: demo test lint docs wheel-check constraints benchmark samples golden mutants clean
+.PHONY: demo test lint docs wheel-check constraints benchmark samples golden mutants fuzz clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -50,6 +50,11 @@ golden: $(VENV)/.installed
 # The mutation gate: hand-written bugs, one at a time; fails if the suite misses one (a few minutes).
 mutants: $(VENV)/.installed
 	$(BIN)/python tests/mutants.py
+
+# The fuzzing gate: 2016 damaged files of every format, each rendered in a subprocess with a memory and a time limit;
+# fails if any ends otherwise than in a picture or one error line, and keeps those cases under tests/fuzz_cases.
+fuzz: $(VENV)/.installed
+	$(BIN)/python -m tests.fuzz
 
 clean:
 	rm -rf $(VENV) samples demo.png .pytest_cache site dist build
