@@ -45,3 +45,32 @@ def test_writers_round_trip(tmp_path):
     slices = np.arange(24, dtype=np.uint16).reshape(2, 3, 4) * 1000
     folder = output.write_slices(slices, tmp_path / "stack")
     assert np.array_equal(np.stack([iio.imread(folder / f"slice_00{z}.png") for z in range(2)]), slices)
+
+
+def test_atomic_output_writes_beside_its_target_and_a_failed_write_leaves_nothing(tmp_path):
+    import errno
+
+    target = tmp_path / "out.png"
+    with pytest.raises(OSError):
+        with output.atomic_output(target) as tmp:
+            assert tmp.parent == tmp_path and output.PARTIAL in tmp.name       # renamed in the same folder
+            tmp.write_bytes(b"half")
+            raise OSError(errno.ENOSPC, "No space left on device")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_remove_partials_clears_what_a_killed_writer_left(tmp_path):
+    (tmp_path / "a").mkdir()
+    left = tmp_path / "a" / f".x.png{output.PARTIAL}k1ll3d.png"
+    left.write_bytes(b"half")
+    (tmp_path / "a" / "x.png").write_bytes(b"whole")
+    (tmp_path / ".hidden.png").write_bytes(b"the user's")
+    assert output.remove_partials(tmp_path) == 1
+    assert sorted(p.name for p in tmp_path.rglob("*")) == [".hidden.png", "a", "x.png"]
+
+
+def test_check_folder_writable_tries_a_real_write(tmp_path):
+    output.check_folder_writable(tmp_path)
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(InputError, match="cannot write in .*: No such file or directory"):
+        output.check_folder_writable(tmp_path / "missing")

@@ -35,15 +35,35 @@ def check_writable(path):
         raise InputError(f"cannot write {path}: it is a folder; give a file name")
 
 
+def check_folder_writable(folder):
+    """Raise :class:`InputError` now if no file can be made in ``folder``, by making one and removing it.
+
+    A real write tells what :func:`os.access` cannot: a read-only file system, a full disk, or (when running as
+    root, whom permissions do not stop) that the folder is writable after all.
+    """
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".voxrender-probe-", dir=folder)
+    except OSError as exc:
+        raise InputError(f"cannot write in {folder}: {exc.strerror}") from None
+    os.close(fd)
+    os.unlink(probe)
+
+
+# The temporaries of atomic_output are named .{name}{PARTIAL}XXXXXXXX{suffix}: only a process killed while writing
+# leaves one behind, and remove_partials finds it by this name.
+PARTIAL = ".partial-"
+
+
 @contextlib.contextmanager
 def atomic_output(path):
-    """Yield a temporary path beside ``path``; rename it to ``path`` only on success.
+    """Yield a temporary path beside ``path``, in the same folder; rename it to ``path`` only on success.
 
-    A failure leaves neither a partial file nor the temporary behind.
+    A failure leaves neither a partial file nor the temporary behind (a killed process leaves its temporary, which
+    :func:`remove_partials` clears).
     """
     path = Path(path)
     check_writable(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}{PARTIAL}", suffix=path.suffix, dir=path.parent)
     os.close(fd)
     try:
         yield Path(tmp)
@@ -53,6 +73,19 @@ def atomic_output(path):
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         raise
+
+
+def remove_partials(folder):
+    """Remove the temporaries that processes killed while writing left in ``folder`` and below; the number removed.
+
+    Only for a folder no running process writes in (a batch holds its folder's lock).
+    """
+    removed = 0
+    for leftover in Path(folder).rglob(f".*{PARTIAL}*"):
+        if leftover.is_file():
+            leftover.unlink()
+            removed += 1
+    return removed
 
 
 def _umask():
