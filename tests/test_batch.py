@@ -196,3 +196,51 @@ def test_index_page_and_sheet(tmp_path, stacks):
     assert "broken.npy" in page or "cannot read" in page                # the failed rows keep their error
     sheet = iio.imread(tmp_path / "sheet.png")
     assert sheet.shape[:2] == (2 * (24 + 16 + 4) + 4, 2 * (24 + 4) + 4)   # a row per input, a column per view
+
+
+def test_outputs_stay_inside_the_batch_folder(tmp_path, stacks):
+    out = tmp_path / "out"
+    work = items([stacks / "ball.npy"])
+    refused = [("../../escaped.png", "picture"), (str(tmp_path / "abs" / "{view}.png"), "picture"),
+               ("{name}/../../{view}.png", "picture")]
+    for pattern, parameter in refused:
+        work[0].patterns = batch.Patterns(pattern)
+        with pytest.raises(InputError, match="outside the batch's folder") as info:
+            batch.run_batch(work, out, jobs=1)
+        assert info.value.parameter == parameter
+    work[0].patterns = batch.Patterns(depth="../{name}-{view}.npy")
+    with pytest.raises(InputError, match="outside") as info:
+        batch.run_batch(work, out, jobs=1)
+    assert info.value.parameter == "depth"
+    assert not out.exists() and not list(tmp_path.rglob("*.png"))      # refused before anything was made
+
+    (tmp_path / "elsewhere").mkdir()
+    out.mkdir()
+    (out / "link").symlink_to(tmp_path / "elsewhere")                   # a link inside that points out
+    work[0].patterns = batch.Patterns("link/{view}.png")
+    with pytest.raises(InputError, match=r"outside the batch's folder .* \(a symbolic link leads to .*elsewhere"):
+        batch.run_batch(work, out, jobs=1)
+    assert not list((tmp_path / "elsewhere").iterdir())
+    work[0].patterns = batch.Patterns("a/../{view}.png")                # a '..' that stays inside is fine
+    assert [r["status"] for r in batch.run_batch(work, out, jobs=1)] == ["ok", "ok"]
+
+
+def test_inputs_are_never_written(tmp_path, stacks):
+    work = items([stacks / "ball.npy"], batch.parse_views(["left"]))
+    work[0].patterns = batch.Patterns(depth="in/{name}.npy")
+    before = (stacks / "ball.npy").read_bytes()
+    with pytest.raises(InputError, match="over an input"):
+        batch.run_batch(work, tmp_path, jobs=1)
+    assert (stacks / "ball.npy").read_bytes() == before
+
+
+def test_a_manifest_output_outside_the_folder_is_refused_in_one_line(tmp_path, stacks):
+    (tmp_path / "m.csv").write_text(f"input,output\n{stacks / 'ball.npy'},../../escaped.png\n")
+    result = CliRunner().invoke(main, ["batch", "--manifest", str(tmp_path / "m.csv"), "--threshold", "500",
+                                       "-o", str(tmp_path / "out" / "deep"), "--jobs", "1"])
+    assert result.exit_code == 2 and len(result.stderr.splitlines()) == 1
+    assert "the manifest's output '../../escaped.png'" in result.stderr and "--pattern" not in result.stderr
+    assert not (tmp_path / "escaped.png").exists() and not (tmp_path / "out").exists()
+    result = CliRunner().invoke(main, ["batch", str(stacks / "ball.npy"), "--pattern", "/tmp/{name}.png",
+                                       "-o", str(tmp_path / "out"), "--jobs", "1"])
+    assert result.exit_code == 2 and result.stderr.startswith("error: --pattern: output pattern '/tmp/{name}.png'")

@@ -134,6 +134,7 @@ class Item:
     views: list = field(default_factory=lambda: parse_views())
     patterns: Patterns = field(default_factory=Patterns)
     per_label: bool = False
+    manifest_outputs: tuple = ()      # the outputs whose pattern a manifest row gave: its errors name the row
 
     @property
     def method(self):
@@ -251,9 +252,10 @@ def items_from(inputs, manifest_rows, read, prepare, options, views, patterns, p
                 item_options = replace(options, method=str(row["method"]).strip())
         except InputError as exc:
             raise InputError(f"{row['input']}: {exc}") from None
-        item_patterns = replace(patterns, picture=str(row.get("output") or patterns.picture))
+        given = str(row.get("output") or "").strip()
+        item_patterns = replace(patterns, picture=given or patterns.picture)
         items.append(Item(str(row["input"]), name, read, item_prepare, item_options, item_views, item_patterns,
-                          per_label))
+                          per_label, ("picture",) if given else ()))
     return items
 
 
@@ -537,9 +539,15 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
 
 
 def _check_patterns(items, out_dir):
-    """Every output of every picture gets a distinct path with the right ending and can be given (normals need
-    gradient shading), before anything is made.
+    """Every output of every picture gets a distinct path inside ``out_dir``, not an input's, with the right ending,
+    and can be given (normals need gradient shading), before anything is made.
+
+    Inside means once ``..`` and symbolic links are resolved: an absolute pattern, a ``..`` or a link inside the
+    folder that points out of it is refused.  An error about a pattern a manifest row gave names that row, not a
+    parameter of the command.
     """
+    folder = os.path.realpath(out_dir)
+    inputs = {os.path.realpath(path) for item in items for path in _item_files(item)}
     seen = {}
     for item in items:
         for index, view in enumerate(item.views):
@@ -547,16 +555,32 @@ def _check_patterns(items, out_dir):
                 outputs = item.outputs(out_dir, view, index)
             except (KeyError, IndexError, ValueError) as exc:
                 raise InputError(f"an output pattern of {item.input} is not valid: use {{name}}, {{view}}, "
-                                 f"{{method}}, {{index}} ({exc})", parameter="pattern") from None
+                                 f"{{method}}, {{index}} ({exc})",
+                                 parameter=None if item.manifest_outputs else "pattern") from None
             outputs.check(item.options)
             for kind, path in outputs.wanted().items():
                 pattern, ending = getattr(item.patterns, kind), OUTPUTS[kind].suffix
+                given, parameter = ((f"{item.input}: the manifest's output {pattern!r}", None)
+                                    if kind in item.manifest_outputs else (f"output pattern {pattern!r}", kind))
+                resolved = os.path.realpath(path)
+                if os.path.commonpath([folder, resolved]) != folder:
+                    through = "" if os.path.abspath(path) == resolved else f" (a symbolic link leads to {resolved})"
+                    raise InputError(f"{given} puts {path} outside the batch's folder {out_dir}{through}; give a "
+                                     "pattern relative to the folder that stays inside it", parameter=parameter)
+                if any(resolved == source or resolved.startswith(source + os.sep) for source in inputs):
+                    raise InputError(f"{given} would write {path} over an input; choose names apart from the "
+                                     "inputs", parameter=parameter)
                 if path.suffix.lower() != ending:
-                    raise InputError(f"output pattern {pattern!r} must end in {ending}", parameter=kind)
+                    raise InputError(f"{given} must end in {ending}", parameter=parameter)
                 if path in seen:
-                    raise InputError(f"output pattern {pattern!r} gives {path} twice; add {{name}} or {{view}}",
-                                     parameter=kind)
+                    raise InputError(f"{given} gives {path} twice; add {{name}} or {{view}}", parameter=parameter)
                 seen[path] = True
+
+
+def _item_files(item):
+    """The paths an item reads: its input and its label map (never written)."""
+    labels = item.prepare.labels
+    return [item.input] + ([labels.source] if labels is not None and labels.source is not None else [])
 
 
 def _animate(item, out_dir, kind, fps, rows):
