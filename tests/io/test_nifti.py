@@ -104,3 +104,75 @@ def test_cut_nifti_files_are_bad_input(tmp_path, name):
     data = np.random.default_rng(0).integers(0, 999, (9, 8, 7)).astype(np.int16)
     nibabel.save(nibabel.Nifti1Image(data, np.eye(4)), str(tmp_path / name))
     assert refused_cuts(tmp_path / name, lambda: io.read_volume(tmp_path / name)) >= 30
+
+
+def _header(shape, dtype=np.int16):
+    import nibabel
+
+    header = nibabel.Nifti1Header()
+    header.set_data_dtype(dtype)
+    header.set_data_shape(shape)
+    header.set_sform(np.eye(4), 1)
+    header["vox_offset"] = 352
+    return header
+
+
+@pytest.mark.parametrize("name", ["huge.nii", "huge.nii.gz"])
+def test_a_header_promising_more_than_the_file_holds_says_both(tmp_path, name):
+    """30000³ int16 over 64 bytes: was 'out of memory; --crop a subregion' (exit 1)."""
+    import gzip
+
+    header = _header((30000, 30000, 30000))
+    whole = header.binaryblock + bytes(4) + bytes(64)                # the header, its extension flag, 64 bytes
+    (tmp_path / name).write_bytes(gzip.compress(whole) if name.endswith(".gz") else whole)
+    with pytest.raises(InputError, match=r"holds 64 bytes of voxels, of the 54 TB its header promises"):
+        io.read_volume(tmp_path / name)
+
+
+def test_a_volume_too_big_for_memory_is_refused_with_its_size(tmp_path, monkeypatch):
+    import nibabel
+
+    from voxrender.io import _shared
+
+    nibabel.save(nibabel.Nifti1Image(np.zeros((20, 20, 20, 3), np.int16), np.eye(4)), str(tmp_path / "v.nii.gz"))
+    monkeypatch.setattr(_shared, "free_memory", lambda: 10_000)
+    with pytest.raises(InputError, match=r"its 20x20x20 int16 voxels take 16 kB, more than the 10 kB of memory"):
+        io.read_volume(tmp_path / "v.nii.gz", frame=1)
+
+
+def test_a_cifti_file_is_named_not_a_volume(tmp_path):
+    """A CIFTI-2 dense scalar file (values on brainordinates): was an internal error (exit 1) in render and info."""
+    import nibabel
+    from nibabel import cifti2
+
+    voxels = cifti2.BrainModelAxis.from_mask(np.ones((2, 2, 2), bool), affine=np.eye(4))
+    image = cifti2.Cifti2Image(np.zeros((2, len(voxels)), np.float32), header=(cifti2.ScalarAxis(["a", "b"]), voxels))
+    image.nifti_header.set_intent("ConnDenseScalar")
+    nibabel.save(image, str(tmp_path / "c.dscalar.nii"))
+    with pytest.raises(InputError, match=r"c.dscalar.nii is a CIFTI-2 file \(ConnDenseScalar: .*\), not a spatial "
+                                         "volume"):
+        io.read_volume(tmp_path / "c.dscalar.nii")
+
+
+def test_a_surface_in_nifti_is_named_not_a_volume(tmp_path):
+    import nibabel
+
+    image = nibabel.Nifti1Image(np.zeros((1, 1, 1, 1, 12, 3), np.float32), np.eye(4))
+    image.header.set_intent("pointset")
+    nibabel.save(image, str(tmp_path / "points.nii"))
+    with pytest.raises(InputError, match=r"holds a point set \(a surface's vertices\), not a spatial volume"):
+        io.read_volume(tmp_path / "points.nii")
+
+
+@pytest.mark.parametrize("offset", [100.0, 353.0, 1e30])
+def test_a_damaged_vox_offset_is_bad_input_in_one_line(tmp_path, capfd, offset):
+    """nibabel's 'vox offset ... too low' (and the repair it logs) were an internal error."""
+    import nibabel
+
+    nibabel.save(nibabel.Nifti1Image(np.zeros((4, 4, 4), np.int16), np.eye(4)), str(tmp_path / "v.nii"))
+    whole = bytearray((tmp_path / "v.nii").read_bytes())
+    whole[108:112] = np.float32(offset).tobytes()
+    (tmp_path / "v.nii").write_bytes(bytes(whole))
+    with pytest.raises(InputError, match="v.nii"):
+        io.read_volume(tmp_path / "v.nii")
+    assert capfd.readouterr().err == ""

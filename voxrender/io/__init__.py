@@ -175,11 +175,3 @@ def _affine(direction, spacing, origin=None):
     affine[:3, :3] = np.asarray(direction, dtype=float) * np.asarray(spacing, dtype=float)[None, :]
     affine[:3, 3] = origin if origin is not None else 0.0
     return np.round(affine, 6)
-
-
-def _affine(direction, spacing, origin=None):
-    """The 4 x 4 voxel (x, y, z) -> patient (LPS, mm) matrix of the stored volume (origin 0 when unknown)."""
-    affine = np.eye(4)
-    affine[:3, :3] = np.asarray(direction, dtype=float) * np.asarray(spacing, dtype=float)[None, :]
-    affine[:3, 3] = origin if origin is not None else 0.0
-    return np.round(affine, 6)

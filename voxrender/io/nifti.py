@@ -13,7 +13,19 @@ import numpy as np
 
 from .. import orient
 from ..errors import InputError
-from ._shared import Reader, Volume, check_frame, check_spacing, first_line, folder_of_volumes, volume_files
+from ._shared import (
+    Reader,
+    Volume,
+    check_fits,
+    check_frame,
+    check_holds,
+    check_spacing,
+    first_line,
+    folder_of_volumes,
+    inflated_size,
+    promised_bytes,
+    volume_files,
+)
 
 SUFFIXES = (".nii", ".nii.gz")
 
@@ -31,7 +43,7 @@ def read_nifti(path, progress, frame=None):
     damaged = (ImageFileError, HeaderDataError, OSError, EOFError, ValueError, zlib.error, OverflowError)
     logger = nibabel.imageglobals.logger
     level = logger.level
-    logger.setLevel(40)                              # nibabel logs header repairs; the errors below say enough
+    logger.setLevel(50)                              # nibabel logs header repairs; the errors below say enough
     try:
         image = nibabel.load(str(path))
         header = image.header
@@ -40,21 +52,21 @@ def read_nifti(path, progress, frame=None):
         raise InputError(f"cannot read {path} as NIfTI: {first_line(exc)}") from None
     finally:
         logger.setLevel(level)
+    _check_a_volume(path, image)
     with nibabel.openers.ImageOpener(str(path)) as opener:     # as stored: loading mends a zero pixdim to 1
         stored = type(header).from_fileobj(opener, check=False)
     pixdim = [float(v) for v in stored["pixdim"][1:4]]
     if not all(np.isfinite(v) and v > 0 for v in pixdim):
         raise InputError(f"{path}: its voxel sizes (pixdim) {pixdim} must be positive; the header is damaged")
     data = image.dataobj
-    if len(shape) == 4 and shape[3] == 1 and frame is None:
-        frame = 0
     if len(shape) == 4:
-        check_frame(path, frame, shape[3])
+        frame = check_frame(path, frame, shape[3])
         data = data[..., frame]
     else:
         check_frame(path, frame)
         if len(shape) != 3:
             raise InputError(f"{path} holds a {len(shape)}-D image; voxrender needs a 3-D volume")
+    _check_sizes(path, image, shape)
     try:
         values = np.asanyarray(data)
     except damaged as exc:                                   # a truncated or corrupt file
@@ -84,6 +96,41 @@ def read_nifti(path, progress, frame=None):
     if header.get("scl_slope") is not None and np.isfinite(header["scl_slope"]) and header["scl_slope"] not in (0, 1):
         meta["scaled"] = f"scl_slope {float(header['scl_slope']):g}, scl_inter {float(header['scl_inter']):g}"
     return Volume(values, check_spacing(spacing, path), meta, direction)
+
+
+# Intents of a NIfTI file that holds no spatial volume, and the CIFTI-2 range (values on brainordinates)
+NOT_VOLUMES = {1008: "a point set (a surface's vertices)", 1009: "triangles (a surface)"}
+CIFTI_INTENTS = range(3000, 3100)
+
+
+def _check_a_volume(path, image):
+    """Refuse a NIfTI file that holds something other than a spatial volume (CIFTI-2, a surface), naming it."""
+    import nibabel
+
+    header = image.header if isinstance(image, nibabel.Nifti1Image) else getattr(image, "nifti_header", None)
+    code = int(header["intent_code"]) if header is not None else 0
+    if not isinstance(image, nibabel.Nifti1Image) or code in CIFTI_INTENTS:
+        name = header.get_intent()[0] if code in CIFTI_INTENTS else type(image).__name__
+        raise InputError(f"{path} is a CIFTI-2 file ({name}: a matrix of values on brain surfaces and structures), "
+                         "not a spatial volume")
+    if code in NOT_VOLUMES:
+        raise InputError(f"{path} holds {NOT_VOLUMES[code]}, not a spatial volume")
+
+
+def _check_sizes(path, image, shape):
+    """Refuse, before reading them, voxels that the file does not hold or this machine cannot: an uncompressed
+    file must hold what its header promises, and the volume (one frame of a 4-D file) must fit in memory.
+    """
+    dtype, offset = image.header.get_data_dtype(), int(image.dataobj.offset)   # where nibabel reads the voxels
+    compressed = str(path).lower().endswith(".gz")
+    if not compressed:
+        check_holds(path, promised_bytes(shape, dtype), path.stat().st_size - offset)
+
+    def held(limit):                                         # what the .nii.gz inflates to, past its header
+        with open(path, "rb") as f:
+            return inflated_size(f, "gzip", offset + limit) - offset
+
+    check_fits(shape[:3], dtype, path, held if compressed else None)
 
 
 def holds_nifti(path):
