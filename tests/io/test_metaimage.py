@@ -81,3 +81,41 @@ def test_cut_metaimages_are_bad_input(tmp_path, compressed):
     _write_mhd(tmp_path / "v.mha", np.random.default_rng(0).integers(0, 999, (3, 8, 9)).astype(np.int16), compressed,
                local=True)
     assert refused_cuts(tmp_path / "v.mha", lambda: io.read_volume(tmp_path / "v.mha")) >= 30
+
+
+def _mha(path, dims, payload, compressed=False):
+    header = (f"NDims = 3\nDimSize = {dims}\nElementType = MET_SHORT\nCompressedData = {compressed}\n"
+              "ElementDataFile = LOCAL\n")
+    path.write_bytes(header.encode() + payload)
+    return path
+
+
+@pytest.mark.parametrize("compressed", [False, True])
+def test_a_header_promising_more_than_the_file_holds_says_both(tmp_path, compressed):
+    payload = zlib.compress(bytes(64)) if compressed else bytes(64)
+    path = _mha(tmp_path / "huge.mha", "30000 30000 30000", payload, compressed)
+    with pytest.raises(InputError, match=r"holds 64 bytes of voxels, of the 54 TB its header promises"):
+        io.read_volume(path)
+
+
+def test_dimensions_whose_product_overflows_int64_are_bad_input(tmp_path):
+    """np.prod of the DimSize wrapped around: a wrong count, then 'cannot reshape array' (exit 1)."""
+    with pytest.raises(InputError, match="of voxels, of the .* its header promises"):
+        io.read_volume(_mha(tmp_path / "v.mha", "4294967296 4294967296 2", bytes(64)))
+
+
+def test_a_compressed_stream_longer_than_promised_is_refused(tmp_path):
+    path = _mha(tmp_path / "bomb.mha", "10 10 10", zlib.compress(bytes(50_000_000)), compressed=True)
+    with pytest.raises(InputError, match="holds more than the 2 kB of voxels its header promises"):
+        io.read_volume(path)
+
+
+@pytest.mark.parametrize("compressed", [False, True])
+def test_a_volume_too_big_for_memory_is_refused_with_its_size(tmp_path, monkeypatch, compressed):
+    from voxrender.io import _shared
+
+    monkeypatch.setattr(_shared, "free_memory", lambda: 1000)
+    payload = bytes(2 * 8000)
+    path = _mha(tmp_path / "v.mha", "20 20 20", zlib.compress(payload) if compressed else payload, compressed)
+    with pytest.raises(InputError, match=r"its 20x20x20 int16 voxels take 16 kB, more than the 1 kB of memory free"):
+        io.read_volume(path)

@@ -5,13 +5,26 @@ MetaImage has no library here: the header is ``Key = Value`` lines up to ``Eleme
 
 from __future__ import annotations
 
-import zlib
+import math
 
 import numpy as np
 
 from .. import orient
 from ..errors import InputError
-from ._shared import Reader, Volume, check_spacing, files_in, first_line, folder_of_volumes, listed
+from ._shared import (
+    Reader,
+    Volume,
+    check_fits,
+    check_holds,
+    check_spacing,
+    files_in,
+    first_line,
+    folder_of_volumes,
+    inflate,
+    inflated_size,
+    listed,
+    promised_bytes,
+)
 
 SUFFIXES = (".mhd", ".mha")
 
@@ -58,7 +71,7 @@ def read_metaimage(path, progress):
     msb = header.get("ElementByteOrderMSB", header.get("BinaryDataByteOrderMSB", "False"))
     dtype = dtype.newbyteorder(">" if msb.lower() == "true" else "<")
     spacing = header.get("ElementSpacing", header.get("ElementSize", "1 1 1")).split()
-    nbytes = int(np.prod(dims)) * dtype.itemsize
+    nbytes = promised_bytes(dims, dtype)
     if data_file == "LOCAL":
         source, offset = path, data_offset
     elif data_file.split()[:1] == ["LIST"] or "%" in data_file:
@@ -68,22 +81,25 @@ def read_metaimage(path, progress):
         source, offset = path.parent / data_file, 0
         if not source.is_file():
             raise InputError(f"{path}: its data file {source} is missing")
-    if header_size == -1:
-        offset = source.stat().st_size - nbytes
+    compressed = header.get("CompressedData", "False").lower() == "true"
+    if header_size == -1:                                # the voxels end the file
+        if compressed:
+            raise InputError(f"{path}: HeaderSize -1 (the voxels at the end) with compressed data; the header is "
+                             "damaged")
+        offset = max(source.stat().st_size - nbytes, offset)
     elif header_size > 0:
         offset += header_size
     with open(source, "rb") as f:
-        f.seek(max(offset, 0))
-        payload = f.read()
-    if header.get("CompressedData", "False").lower() == "true":
-        try:
-            payload = zlib.decompressobj(zlib.MAX_WBITS | 32).decompress(payload)
-        except zlib.error as exc:
-            raise InputError(f"{source}: compressed MetaImage data is corrupt ({exc})") from None
-    if len(payload) < nbytes or offset < 0:
-        raise InputError(f"{source}: holds {len(payload)} bytes of voxels but DimSize {dims} of "
-                         f"{header['ElementType']} needs {nbytes}; the file is truncated or the header wrong")
-    values = np.frombuffer(payload, dtype, count=int(np.prod(dims))).reshape(dims[::-1])
+        f.seek(offset)
+        if compressed:
+            check_fits(dims[::-1], dtype, source, held=lambda limit: inflated_size(f, "zlib", limit))
+            f.seek(offset)
+            values = np.frombuffer(inflate(f, "zlib", nbytes, source), dtype)
+        else:
+            check_holds(source, nbytes, source.stat().st_size - offset)
+            check_fits(dims[::-1], dtype, source)
+            values = np.fromfile(f, dtype, count=math.prod(dims))
+    values = values.reshape(dims[::-1])
     direction, orientation_from = _metaimage_direction(header, path)
     meta = {"spacing_from": "MetaImage header", "orientation_from": orientation_from}
     for key in ("Offset", "Origin", "Position"):
@@ -94,7 +110,7 @@ def read_metaimage(path, progress):
                 pass
             break
     meta["source"] = str(path)
-    return Volume(values.astype(dtype.newbyteorder("=")), check_spacing(spacing, path), meta, direction)
+    return Volume(values.astype(dtype.newbyteorder("="), copy=False), check_spacing(spacing, path), meta, direction)
 
 
 def _metaimage_direction(header, path):
