@@ -12,6 +12,7 @@ import json
 import math
 import random
 import shutil
+import warnings
 from dataclasses import dataclass, field
 
 import nibabel
@@ -199,7 +200,8 @@ def npy_header_mutation(rng, path):
 
     with open(path, "rb") as f:
         version = npy_format.read_magic(f)
-        shape, fortran, dtype = npy_format._read_array_header(f, version)
+        read_header = npy_format.read_array_header_1_0 if version == (1, 0) else npy_format.read_array_header_2_0
+        shape, fortran, dtype = read_header(f)
         data = f.read()
     header = {"shape": shape, "fortran_order": fortran, "descr": npy_format.dtype_to_descr(dtype)}
     key, value = rng.choice(NPY_HEADERS)
@@ -412,7 +414,7 @@ def dicom_mutation(rng, files, enhanced):
                 shared.PlaneOrientationSequence[0].ImageOrientationPatient = [0] * 6
         else:
             setattr(ds, keyword, value)
-        ds.save_as(path, enforce_file_format=False, implicit_vr=False, little_endian=True)
+        pydicom.dcmwrite(path, ds, implicit_vr=False, little_endian=True, force_encoding=True)
     return f"{description} ({where})"
 
 
@@ -630,6 +632,12 @@ FORMATS = {
 
 def make_case(seed, number, case):
     """Write case ``number`` of ``seed`` into the folder ``case`` (created) and return its :class:`Case`."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")             # the libraries' and numpy's notes on the odd values written
+        return _make_case(seed, number, case)
+
+
+def _make_case(seed, number, case):
     rng = random.Random(f"{seed}/{number}")
     name = sorted(FORMATS)[number % len(FORMATS)]
     fmt = FORMATS[name]
@@ -648,6 +656,8 @@ def make_case(seed, number, case):
         kind = rng.choice(kinds)
         if kind == "values":
             what, values = value_mutations(rng, values)
+            if values.dtype == bool and name != "npy":     # the other formats store no booleans
+                values = values.astype(np.uint8)
             seed_file = fmt.write(case, values, spacing, direction)
         elif kind == "variant":
             variant = _tiff_variant if name == "tiff" else _png_variant

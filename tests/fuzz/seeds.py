@@ -63,7 +63,7 @@ def nifti2(case, values, spacing=SPACING, direction=None):
 def nifti_4d(case, values, spacing=SPACING, direction=None):
     """Two frames, the second the first inverted; ``--frame 1``."""
     path = case / INPUT / "x.nii"
-    frames = np.stack([values, values.max() - values], axis=-1)
+    frames = np.stack([values, np.nanmax(values) - values], axis=-1)
     affine = np.diag([-spacing[0], -spacing[1], spacing[2], 1.0])
     nibabel.save(nibabel.Nifti1Image(np.transpose(frames, (2, 1, 0, 3)), affine), str(path))
     return Seed(f"{INPUT}/{path.name}", ["--frame", "1"], [path])
@@ -91,7 +91,7 @@ def nrrd_4d(case, values, spacing=SPACING, direction=None):
 
     path = case / INPUT / "x.nrrd"
     matrix = np.diag(spacing).T
-    frames = np.stack([values, values.max() - values])
+    frames = np.stack([values, np.nanmax(values) - values])
     header = {"space": "left-posterior-superior", "kinds": ["list", "domain", "domain", "domain"],
               "space directions": np.vstack([np.full(3, np.nan), matrix]), "space origin": [0.0, 0.0, 0.0]}
     nrrd.write(str(path), frames, header, index_order="C")
@@ -183,7 +183,11 @@ def segments_file(case, values, spacing=SPACING, direction=None, octree=False):
     from voxrender.pipeline import Encoded, PrepOptions, encode_volume
 
     path = case / INPUT / ("x.vxo" if octree else "x.vxs")
-    threshold = float(np.nanmax(values)) / 2 or 1
+    finite = values[np.isfinite(values)]
+    if not finite.size or finite.min() == finite.max() == 0:     # no object to encode: the phantom's
+        values, spacing, _ = phantom_stored()
+        finite = values
+    threshold = float(finite.max())             # at least the brightest voxels are the object
     Encoded(encode_volume(Volume(values, spacing), PrepOptions(threshold=threshold))).save(path, octree=octree)
     return Seed(f"{INPUT}/{path.name}", files=[path])
 
@@ -239,7 +243,8 @@ def colour_table(case, values, spacing=SPACING, direction=None, kind="csv", rows
     elif kind == "ctbl":
         text = "# Color table file\n" + "".join(" ".join([*row, "255"]) + "\n" for row in rows)
     else:
-        text = "".join(f'{row[0]} {" ".join(row[2:])} 1 1 1 "{row[1]}"\n' for row in rows)
+        text = "".join(" ".join([*row[:1], *row[2:], "1 1 1", *[f'"{name}"' for name in row[1:2]]]) + "\n"
+                       for row in rows)
     path.write_text(text)
     return Seed(f"{INPUT}/x.nii", ["--labels", "--colours", f"{INPUT}/{path.name}"], [path], text=True)
 
