@@ -162,3 +162,79 @@ def test_cut_dicom_files_are_bad_input(tmp_path, kind):
         ds.compress(getattr(uid, kind), ds.pixel_array.astype(np.int16))
         ds.save_as(victim)
     assert refused_cuts(victim, lambda: io.read_volume(tmp_path)) >= 30
+
+
+def _edit(paths, **values):
+    """Set header ``values`` (keyword: value; None deletes) in each of the DICOM files ``paths``."""
+    import pydicom
+
+    for path in paths:
+        ds = pydicom.dcmread(path)
+        for keyword, value in values.items():
+            if value is None:
+                delattr(ds, keyword)
+            else:
+                setattr(ds, keyword, value)
+        ds.save_as(path)
+
+
+def test_a_one_value_pixel_spacing_is_bad_input(tmp_path):
+    """Was "'DSfloat' object is not iterable" (exit 1)."""
+    import pydicom
+
+    _edit(write_series(tmp_path / "classic", np.zeros((3, 4, 4))), PixelSpacing="0.5")
+    with pytest.raises(InputError, match=r"its PixelSpacing 0.5 is not two numbers"):
+        io.read_volume(tmp_path / "classic")
+    (tmp_path / "enhanced").mkdir()
+    path = write_enhanced(tmp_path / "enhanced" / "e.dcm", np.zeros((3, 4, 4)))
+    ds = pydicom.dcmread(path)
+    ds.SharedFunctionalGroupsSequence[0].PixelMeasuresSequence[0].PixelSpacing = "0.5"
+    ds.save_as(path)
+    with pytest.raises(InputError, match=r"its PixelSpacing 0.5 is not two numbers"):
+        io.read_volume(tmp_path / "enhanced")
+
+
+def test_a_one_value_image_position_falls_back_to_instance_numbers(tmp_path):
+    _edit(write_series(tmp_path, np.zeros((3, 4, 4))), ImagePositionPatient="5")
+    volume = io.read_volume(tmp_path)
+    assert volume.meta["sorted_by"] == "InstanceNumber" and "origin" not in volume.meta
+
+
+@pytest.mark.parametrize("slope", ["1e300", "inf", "nan"])
+def test_a_huge_or_non_finite_rescale_slope_is_bad_input(tmp_path, slope):
+    """One beyond float32 (or not finite) gave inf or NaN voxels."""
+    _edit(write_series(tmp_path, np.ones((3, 4, 4))), RescaleSlope=slope)
+    with pytest.raises(InputError, match=r"RescaleSlope .* take its values 1 to 1 beyond any number; the file is "
+                                         "damaged"):
+        io.read_volume(tmp_path)
+
+
+@pytest.mark.parametrize("slope, intercept, dtype", [(100000, 0, np.int32), (10**12, 0, np.float32),
+                                                     (1, 10**10, np.float32), (1e20, 0, np.float32)])
+def test_a_large_rescale_that_fits_gives_its_values(tmp_path, slope, intercept, dtype):
+    """A whole slope that overflowed int32 was an internal error (exit 1): beyond int32, the values are float32."""
+    write_series(tmp_path, np.full((2, 3, 3), 7), slope=slope, intercept=intercept)
+    values = io.read_volume(tmp_path).values
+    assert values.dtype == dtype and np.allclose(values, 7 * float(slope) + intercept)
+
+
+def test_a_padding_value_is_kept_in_the_volumes_units(tmp_path):
+    """PixelPaddingValue (stored values) marks the outside of the scan circle; meta says it in HU."""
+    import pydicom
+
+    for path in write_series(tmp_path, np.full((2, 3, 3), 100)):
+        ds = pydicom.dcmread(path)
+        ds.add_new(0x00280120, "SS", -2000)                    # PixelPaddingValue, of the pixels' VR
+        ds.save_as(path)
+    assert io.read_volume(tmp_path).meta["padding_value"] == -3024
+    write_series(tmp_path / "none", np.full((2, 3, 3), 100))
+    assert "padding_value" not in io.read_volume(tmp_path / "none").meta
+
+
+def test_slices_too_big_for_memory_are_refused_with_their_size(tmp_path, monkeypatch):
+    from voxrender.io import _shared
+
+    write_series(tmp_path, np.zeros((4, 20, 20)))
+    monkeypatch.setattr(_shared, "free_memory", lambda: 1000)
+    with pytest.raises(InputError, match=r"its 4x20x20 int16 voxels take 3.2 kB, more than the 1 kB of memory"):
+        io.read_volume(tmp_path)

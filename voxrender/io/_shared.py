@@ -181,12 +181,15 @@ def to_grey(image, name):
     return image
 
 
-def fill_stack(items, read_slice, label, progress):
-    """Allocate the volume from the first slice, then fill it slice by slice."""
+def fill_stack(items, read_slice, label, progress, source):
+    """Allocate the volume from the first slice (if the free memory holds it), then fill it slice by slice;
+    ``source`` names the folder in messages.
+    """
     volume = None
     for z, item in enumerate(progress(items, len(items), label)):
         data, name = read_slice(item)
         if volume is None:
+            check_fits((len(items),) + data.shape, data.dtype, source)
             volume = np.empty((len(items),) + data.shape, dtype=data.dtype)
             first = name
         if data.shape != volume.shape[1:]:
@@ -195,6 +198,7 @@ def fill_stack(items, read_slice, label, progress):
         if np.can_cast(data.dtype, volume.dtype, "safe"):
             volume[z] = data
         else:  # a later slice needs a wider type: widen once, keep going
+            check_fits(volume.shape, np.result_type(volume.dtype, data.dtype), source)
             volume = volume.astype(np.result_type(volume.dtype, data.dtype))
             volume[z] = data
     return volume

@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import struct
 import warnings
+from collections.abc import Iterable
 
 import numpy as np
 
 from ..errors import InputError
-from ._shared import Reader, Volume, fill_stack, first_line, natural_key, to_grey
+from ._shared import Reader, Volume, check_fits, check_spacing, fill_stack, first_line, natural_key, to_grey
 
 SUFFIXES = (".dcm", ".dicom", ".ima")
 # The header values that group, sort and place the slices.
@@ -104,7 +105,7 @@ def read_dicom(folder, progress, series=None):
                 raise InputError(f"the series in {folder} mixes multi-frame and single-frame files; keep one kind")
             return _read_multiframe(chosen[0][0])
         chosen, spacing_z, sorted_by, direction = _sort_dicom(chosen)
-        pixel = [float(v) for v in getattr(chosen[0][1], "PixelSpacing", [1.0, 1.0])]
+        pixel = _pixel_spacing(chosen[0][1], chosen[0][0])
     except InputError:
         raise
     except (ValueError, TypeError, NotImplementedError) as exc:   # a value its VR does not allow (IS "1A", DS "?.0")
@@ -124,7 +125,7 @@ def read_dicom(folder, progress, series=None):
         ds, data = _dicom_pixels(f)
         return _rescale(to_grey(data, f.name), ds), f.name
 
-    values = fill_stack(chosen, read, "reading DICOM slices", progress)
+    values = fill_stack(chosen, read, "reading DICOM slices", progress, folder)
     meta = {"slices": len(chosen), "series": str(getattr(first, "SeriesInstanceUID", "")),
             "description": str(getattr(first, "SeriesDescription", "")),
             "modality": str(getattr(first, "Modality", "")),
@@ -132,9 +133,45 @@ def read_dicom(folder, progress, series=None):
             "sorted_by": sorted_by, "spacing_from": "DICOM"}
     if direction is not None:
         meta["orientation_from"] = "DICOM ImageOrientationPatient and the slice positions"
-    if "ImagePositionPatient" in first:
-        meta["origin"] = [float(v) for v in first.ImagePositionPatient]
-    return Volume(values, (pixel[1], pixel[0], spacing_z), meta, direction)
+    if _numbers(first.get("ImagePositionPatient")) is not None:
+        meta["origin"] = _numbers(first.ImagePositionPatient)
+    meta.update(_padding(first))
+    return Volume(values, check_spacing((pixel[1], pixel[0], spacing_z), folder), meta, direction)
+
+
+def _numbers(value, count=3):
+    """A DICOM multi-value as ``count`` finite floats, or ``None`` when it is not that (one value, text ...)."""
+    if value is None:
+        return None
+    items = list(value) if isinstance(value, Iterable) and not isinstance(value, (str, bytes)) else [value]
+    try:
+        numbers = [float(v) for v in items]
+    except (TypeError, ValueError):
+        return None
+    return numbers if len(numbers) == count and all(np.isfinite(numbers)) else None
+
+
+def _pixel_spacing(ds, source, value=None):
+    """The (row, column) spacing in mm of ``ds`` (or the ``value`` a functional group gives), 1 mm when unsaid."""
+    value = value if value is not None else ds.get("PixelSpacing")
+    if value is None:
+        return [1.0, 1.0]
+    pixel = _numbers(value, 2)
+    if pixel is None:
+        raise InputError(f"{source}: its PixelSpacing {value} is not two numbers (row, column spacing); the file is "
+                         "damaged")
+    return pixel
+
+
+def _padding(ds):
+    """``{"padding_value": v}``: the PixelPaddingValue that fills the outside of a CT's scan circle, in the
+    volume's units (rescaled as the voxels are); empty when the file has none.
+    """
+    try:
+        padding = float(ds.PixelPaddingValue)
+    except (AttributeError, TypeError, ValueError):
+        return {}
+    return {"padding_value": float(_rescale(np.array([padding]), ds)[0])}
 
 
 def _frames(ds):
@@ -153,6 +190,7 @@ def _dicom_pixels(path):
     ds = None
     try:
         ds = pydicom.dcmread(path, force=True)
+        _check_pixels_fit(ds, path)
         data = ds.pixel_array
         if str(getattr(ds, "PhotometricInterpretation", "")).startswith("YBR") and data.shape[-1] == 3:
             data = convert_color_space(data, ds.PhotometricInterpretation, "RGB")
@@ -160,6 +198,14 @@ def _dicom_pixels(path):
         raise InputError(f"cannot read the pixels of DICOM file {path}{_compression(ds, damaged)}: "
                          f"{first_line(exc)}") from None
     return ds, data
+
+
+def _check_pixels_fit(ds, path):
+    """Refuse, before decoding them, pixels the free memory cannot hold (a compressed file can promise any size)."""
+    samples = int(ds.get("SamplesPerPixel", 1) or 1)
+    shape = [_frames(ds), int(ds.Rows), int(ds.Columns)] + [samples] * (samples > 1)
+    dtype = {8: np.uint8, 32: np.uint32, 64: np.float64}.get(int(ds.get("BitsAllocated", 16) or 16), np.uint16)
+    check_fits(shape, dtype, path)
 
 
 def _compression(ds, damaged):
@@ -172,14 +218,23 @@ def _compression(ds, damaged):
 
 
 def _rescale(data, ds, slope=None, intercept=None):
-    """Stored values to units (Hounsfield for CT) by RescaleSlope and RescaleIntercept; int16 when they fit."""
+    """Stored values to units (Hounsfield for CT) by RescaleSlope and RescaleIntercept: integers (int16 when they
+    fit) for whole numbers, else float32; a slope or intercept that is not finite, or takes the values beyond
+    float32, is a damaged file.
+    """
     try:
         slope = float(slope if slope is not None else (getattr(ds, "RescaleSlope", 1) or 1))
         intercept = float(intercept if intercept is not None else (getattr(ds, "RescaleIntercept", 0) or 0))
     except (ValueError, TypeError, NotImplementedError):          # not a number, or of an unknown VR
         raise InputError("a DICOM file's RescaleSlope or RescaleIntercept is not a number; the file is damaged") \
             from None
-    if slope.is_integer() and intercept.is_integer() and data.dtype.kind in "iub":
+    low, high = (float(data.min()), float(data.max())) if data.size else (0.0, 0.0)
+    ends = [low * slope + intercept, high * slope + intercept]
+    if not np.all(np.isfinite([slope, intercept])) or max(abs(e) for e in ends) > float(np.finfo(np.float32).max):
+        raise InputError(f"a DICOM file's RescaleSlope {slope:g} and RescaleIntercept {intercept:g} take its values "
+                         f"{low:g} to {high:g} beyond any number; the file is damaged")
+    whole = slope.is_integer() and intercept.is_integer() and data.dtype.kind in "iub"
+    if whole and all(np.iinfo(np.int32).min <= e <= np.iinfo(np.int32).max for e in [*ends, slope, intercept]):
         data = data.astype(np.int32) * int(slope) + int(intercept)
         if data.size and np.iinfo(np.int16).min <= data.min() and data.max() <= np.iinfo(np.int16).max:
             data = data.astype(np.int16)
@@ -238,7 +293,7 @@ def _read_multiframe(path):
         positions, rescale, orientation = None, [(None, None)] * count, None
         meta["sorted_by"] = "file order"
     values = np.stack([_rescale(frame, ds, *rescale[k]) for k, frame in enumerate(frames)])
-    row_spacing, column_spacing = (float(v) for v in (pixel or (1.0, 1.0)))
+    row_spacing, column_spacing = _pixel_spacing(ds, path, pixel)
     direction, spacing_z = None, 1.0
     if positions is not None:
         orientation = np.array([float(v) for v in orientation])
@@ -256,7 +311,8 @@ def _read_multiframe(path):
     if str(getattr(ds, "Modality", "")) == "CT":
         meta["units"] = "HU"
     meta.setdefault("units", "stored values")
-    return Volume(values, (column_spacing, row_spacing, abs(spacing_z)), meta, direction)
+    meta.update(_padding(ds))
+    return Volume(values, check_spacing((column_spacing, row_spacing, abs(spacing_z)), path), meta, direction)
 
 
 def _list_series(groups):

@@ -42,7 +42,7 @@ def read_images(folder, progress):
             raise InputError(f"cannot read image {f}: {first_line(exc)}") from None
         return to_grey(image, f.name), f.name
 
-    values = fill_stack(files, read, "reading images", progress)
+    values = fill_stack(files, read, "reading images", progress, folder)
     return Volume(values, (1.0, 1.0, 1.0), {"spacing_from": "default (images carry no spacing)",
                                             "slices": len(files)})
 
