@@ -11,6 +11,13 @@ It runs in two phases of independent tasks:
 Tasks run in worker processes (``jobs``) or on a Dask cluster (``scheduler``); a failing
 input is recorded and the others go on; every picture is written atomically, and a
 re-run skips the pictures that exist and are valid.  One summary row per picture.
+
+Faults it survives: a worker process that dies (its pictures fail with how it died, the others
+are made), a batch killed part-way (the re-run makes the rest and clears the temporaries it
+left), a full disk (one error that says how many pictures are there; the summary, if it fits,
+agrees), a cache entry damaged or tampered with (its checksum finds it out; it is made again).
+Outputs stay inside the batch's folder, which one batch at a time holds (a lock the system
+lets go of when its process ends, however it ends).
 Memory: a worker holds one volume (and its mask) while it encodes, and only memory-mapped
 segments and one picture while it renders, so the peak is about ``jobs`` times the largest
 volume plus its mask.
@@ -18,12 +25,16 @@ volume plus its mask.
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import errno
 import functools
 import glob
 import hashlib
 import json
 import os
+import shutil
+import tempfile
 import time
 import tomllib
 import traceback
@@ -32,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__, output, parse, segments
+from . import __version__, output, parse
 from ._picture import Outputs, RenderOptions, about, picture, write_outputs
 from ._render import framing_box, method_record
 from .errors import InputError
@@ -272,9 +283,7 @@ def cache_key(path, read, prepare):
         files += [p for p in path.parent.iterdir() if p.name.startswith(path.stem + ".") and p != path]
     for file in files:
         digest.update(str(file.relative_to(path) if file.is_relative_to(path) else file.name).encode())
-        with open(file, "rb") as f:
-            for block in iter(lambda: f.read(1 << 20), b""):
-                digest.update(block)
+        _add_bytes(digest, file)
     digest.update(json.dumps([asdict(read), asdict(prepare), __version__], sort_keys=True, default=_stable).encode())
     return digest.hexdigest()[:32]
 
@@ -295,18 +304,60 @@ def _encode_task(item, cache_dir):
         with_octree = method_record(item.method).octree          # kept in the cache: built once, not per view
         key = cache_key(item.input, item.read, item.prepare)
         target = Path(cache_dir) / f"{key}.{'vxo' if with_octree else 'vxs'}"
-        if target.is_file():
-            segments.load(target)  # a damaged cache file is made again
+        if _is_intact(target):          # a damaged or tampered entry is made again
             return {"input": item.input, "segments": str(target), "seconds": {"load": 0.0, "prepare": 0.0},
                     "cached": True, "key_seconds": time.perf_counter() - started}
         loaded = load_segments(item.input, item.read, item.prepare)
-        loaded.save(target, octree=with_octree)
+        try:
+            loaded.save(target, octree=with_octree)
+            output.write_json(_record_of(target), _checksum(target))
+        except OSError as exc:          # the disk refused, not the input nor voxrender
+            return _write_failure({"input": item.input}, exc)
         return {"input": item.input, "segments": str(target), "seconds": loaded.seconds, "cached": False}
     except InputError as exc:
         return {"input": item.input, "error": str(exc)}
     except Exception as exc:  # a bug must not stop the other inputs; it is reported in the summary
         return {"input": item.input, "error": f"internal error: {type(exc).__name__}: {exc}",
                 "traceback": traceback.format_exc()}
+
+
+def _record_of(entry):
+    """The record beside a cache entry: its size and checksum, written once the entry is whole."""
+    return entry.with_name(entry.name + ".json")
+
+
+def _add_bytes(digest, path):
+    """Feed the bytes of the file at ``path`` to ``digest``, a block at a time."""
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+
+
+def _checksum(path):
+    """The size and SHA-256 of the file at ``path``."""
+    digest = hashlib.sha256()
+    _add_bytes(digest, path)
+    return {"bytes": Path(path).stat().st_size, "sha256": digest.hexdigest()}
+
+
+def _is_intact(entry):
+    """Whether the cache entry exists and its bytes are those its record says were written."""
+    try:
+        record = json.loads(_record_of(entry).read_text())
+        return record["bytes"] == entry.stat().st_size and record == _checksum(entry)
+    except (OSError, ValueError, KeyError, TypeError):   # no entry, no record, or a damaged record
+        return False
+
+
+_NO_SPACE = (errno.ENOSPC, errno.EDQUOT)
+
+
+def _write_failure(row, exc):
+    """``row`` failed by a write the system refused (``exc``): its error says which file and why; a full disk is
+    marked (``no_space``) for :func:`run_batch` to report.
+    """
+    where = f"cannot write {exc.filename}: " if exc.filename else "cannot write: "
+    return {**row, "error": where + (exc.strerror or str(exc)), "no_space": exc.errno in _NO_SPACE}
 
 
 @functools.lru_cache(maxsize=2)
@@ -334,11 +385,19 @@ def _render_task(item, view, index, segments_path, out_dir, encode_seconds):
         encoded = _encoded(str(segments_path), (status.st_size, status.st_mtime_ns))
         result = picture(encoded.segments, framed(item, view, encoded.segments), item.options,
                          tree=encoded.tree_for(item.method))
-        for path in outputs.wanted().values():
-            path.parent.mkdir(parents=True, exist_ok=True)
-        seconds = write_outputs(result, outputs, about(encoded.segments))   # this picture's stages
-        if item.per_label and result.labels is not None:
-            _write_label_pictures(item, result, encoded.segments, outputs.picture)
+        try:
+            for path in outputs.wanted().values():
+                path.parent.mkdir(parents=True, exist_ok=True)
+            seconds = write_outputs(result, outputs, about(encoded.segments))   # this picture's stages
+            if item.per_label and result.labels is not None:
+                _write_label_pictures(item, result, encoded.segments, outputs.picture)
+        except BaseException as exc:    # a view's outputs are all there or none: a re-run makes them all again
+            for path in [*outputs.wanted().values(),
+                         *(item.label_picture(outputs.picture, label) for label in result.label_table or ())]:
+                path.unlink(missing_ok=True)
+            if isinstance(exc, OSError):   # the disk refused, not the input nor voxrender
+                return _write_failure(_summary_row(item, view, outputs.picture, "failed"), exc)
+            raise
     except InputError as exc:
         return _summary_row(item, view, outputs.picture, "failed", str(exc))
     except Exception as exc:  # reported in the summary; the batch goes on
@@ -370,20 +429,25 @@ def framed(item, view, encoded):
     return frame_together([chosen, *others], encoded.shape, framing_box(encoded, item.options.clip))[0]
 
 
-def _is_done(path, size):
-    """Whether ``path`` is a readable PNG of the expected ``size = (H, W)`` (a finished picture)."""
+def _is_done(outputs, size):
+    """Whether a view's :class:`~voxrender._picture.Outputs` are finished: its picture a readable PNG of the expected
+    ``size = (H, W)``, and each other output there (each is written whole or not at all).
+    """
     import imageio.v3 as iio
 
     try:
-        return tuple(iio.imread(path, extension=".png").shape[:2]) == tuple(size)  # decodes it all
+        picture_done = tuple(iio.imread(outputs.picture, extension=".png").shape[:2]) == tuple(size)  # decodes it all
     except Exception:  # missing, truncated or not a PNG: make it again
         return False
+    return picture_done and all(path.is_file() for path in outputs.wanted().values())
 
 
 # ------------------------------------------------------------------ executors
 
 class _Inline:
     """Runs tasks in this process, in order (jobs = 1)."""
+
+    died = ()       # what a future's result raises when the process of its task died: nothing here
 
     def submit(self, fn, *args):
         from concurrent.futures import Future
@@ -399,22 +463,149 @@ class _Inline:
         pass
 
 
+class _WorkerDied(Exception):
+    """The process running a task died (killed, or out of memory); the message says how."""
+
+
+@dataclass
+class _Task:
+    """A task of :class:`_Processes`: what to run, its mark, and its future in the pool now."""
+
+    fn: object
+    args: tuple
+    mark: Path                          # exists while a worker runs the task
+    running: object = None              # its future in the pool
+
+
 class _Processes:
+    """Runs tasks in worker processes (jobs > 1), and survives a worker that dies.
+
+    A worker killed (by a signal, or for want of memory) breaks its whole pool: every task not yet finished then
+    fails.  The tasks that were running when it broke (each marks itself while it runs) are run again one at a
+    time, each in a process of its own, so the one that kills its process is found and gets a :class:`_WorkerDied`
+    with how its process ended; the tasks still waiting go to a new pool.  :meth:`submit` gives a future of its
+    own, which stays the task's whichever process runs it.
+    """
+
+    died = (_WorkerDied,)
+
     def __init__(self, jobs):
         from concurrent.futures import ProcessPoolExecutor
 
+        self.jobs = jobs
+        self.marks = Path(tempfile.mkdtemp(prefix="voxrender-running-"))
+        self.tasks = {}
         self.pool = ProcessPoolExecutor(max_workers=jobs)
 
     def submit(self, fn, *args):
-        return self.pool.submit(fn, *args)
+        from concurrent.futures import Future
+
+        future = Future()
+        self._start(self.tasks.setdefault(future, _Task(fn, args, self.marks / str(len(self.tasks)))))
+        return future
+
+    def _start(self, task):
+        from concurrent.futures import Future
+        from concurrent.futures.process import BrokenProcessPool
+
+        try:
+            task.running = self.pool.submit(_marked, task.mark, task.fn, *task.args)
+        except BrokenProcessPool as exc:    # broken since the last look: it goes again with the others
+            task.running = Future()
+            task.running.set_exception(exc)
 
     def as_completed(self, futures):
-        from concurrent.futures import as_completed
+        from concurrent.futures import FIRST_COMPLETED, wait
+        from concurrent.futures.process import BrokenProcessPool
 
-        return as_completed(futures)
+        waiting = set(futures)
+        while waiting:
+            running = {self.tasks[future].running: future for future in waiting}
+            done, _ = wait(running, return_when=FIRST_COMPLETED)
+            if any(isinstance(finished.exception(), BrokenProcessPool) for finished in done):
+                self._recover()
+            for future in list(waiting):
+                task = self.tasks[future]
+                if not future.done() and task.running.done() and \
+                        not isinstance(task.running.exception(), BrokenProcessPool):
+                    _settle(future, task.running.exception() or task.running.result())
+                if future.done():
+                    waiting.discard(future)
+                    yield future
+
+    def _recover(self):
+        """After a worker died: a new pool for the tasks that were waiting, each running one again alone."""
+        from concurrent.futures import ProcessPoolExecutor
+        from concurrent.futures.process import BrokenProcessPool
+
+        self.pool.shutdown(wait=True)       # once it is down, every task it broke says so
+        self.pool = ProcessPoolExecutor(max_workers=self.jobs)
+        broken = [(future, task) for future, task in self.tasks.items()
+                  if not future.done() and isinstance(task.running.exception(), BrokenProcessPool)]
+        for _, task in broken:
+            if not task.mark.exists():
+                self._start(task)
+        for future, task in broken:
+            if task.mark.exists():
+                task.mark.unlink()
+                _settle(future, _alone(task.fn, task.args))
 
     def close(self):
         self.pool.shutdown(cancel_futures=True)
+        shutil.rmtree(self.marks, ignore_errors=True)
+
+
+def _why_died(exc):
+    """The error of a task whose process died: how, as :class:`_Processes` or Dask tells."""
+    if isinstance(exc, _WorkerDied):
+        return str(exc)
+    return "its worker process died, on as many Dask workers as Dask allows (their logs say why)"
+
+
+def _marked(mark, fn, *args):
+    """``fn(*args)`` in a worker, with ``mark`` there while it runs (see :class:`_Processes`)."""
+    Path(mark).touch()
+    try:
+        return fn(*args)
+    finally:
+        Path(mark).unlink()
+
+
+def _alone(fn, args):
+    """``fn(*args)`` in a process of its own: its result, or a :class:`_WorkerDied` saying how the process ended."""
+    import multiprocessing
+    import signal
+
+    receiving, sending = multiprocessing.Pipe(duplex=False)
+    process = multiprocessing.Process(target=_send_result, args=(sending, fn, args), daemon=True)
+    process.start()
+    sending.close()
+    try:
+        return receiving.recv()
+    except EOFError:                    # it died before it could send
+        process.join()
+        code = process.exitcode
+        how = f"killed by {signal.Signals(-code).name}" if code < 0 else f"exit status {code}"
+        return _WorkerDied(f"its worker process died ({how})")
+    finally:
+        receiving.close()
+        process.join()
+
+
+def _send_result(connection, fn, args):
+    try:
+        result = fn(*args)
+    except Exception as exc:            # the tasks report their own errors; this is for the unforeseen
+        result = exc
+    connection.send(result)
+
+
+def _settle(future, result):
+    """Give ``future`` the task's result, or its exception when the task raised one."""
+    if isinstance(result, BaseException):
+        future.set_exception(result)
+    else:
+        future.set_result(result)
 
 
 class _Dask:
@@ -435,6 +626,12 @@ class _Dask:
             except OSError as exc:
                 raise InputError(f"cannot reach the Dask scheduler at {scheduler}: {exc}",
                                  parameter="scheduler") from None
+
+    @property
+    def died(self):
+        from distributed import KilledWorker  # once the workers running the task died as often as Dask allows
+
+        return (KilledWorker,)
 
     def submit(self, fn, *args):
         return self.client.submit(fn, *args, pure=False)
@@ -482,60 +679,152 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
 
     Besides the pictures it writes ``summary.csv`` and ``index.html`` (thumbnails linked to the pictures, with
     each row's numbers and errors).
+
+    Raises
+    ------
+    InputError
+        Before anything is rendered: an output outside ``out_dir`` or over an input, a pattern that is not
+        valid, a folder that cannot be written, or one that another batch is using.  After: the disk was full
+        (the message says how many pictures are there, and whether the summary fitted).
     """
     out_dir = Path(out_dir)
     _check_patterns(items, out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    cache_dir = Path(cache_dir or out_dir / ".voxrender-cache")
-    cache_dir.mkdir(parents=True, exist_ok=True)
+    _make_folder(out_dir)
+    output.check_folder_writable(out_dir)
+    with _folder_lock(out_dir):
+        own_cache = cache_dir is None           # another batch may be writing in a cache it was given
+        cache_dir = Path(cache_dir or out_dir / ".voxrender-cache")
+        _make_folder(cache_dir)
+        for folder in _folders_written(items, out_dir) | ({cache_dir} if own_cache else set()):
+            output.remove_partials(folder)      # what a batch killed while writing left
+        ordered = _render_all(items, out_dir, jobs, scheduler, cache_dir, progress)
+        no_space = any([row.pop("no_space", False) for row in ordered])     # every row's mark popped
+        unwritten = _write_reports(out_dir, ordered)
+        if no_space or unwritten:
+            there = sum(row["status"] in ("ok", "done earlier") for row in ordered)
+            said = f"{' and '.join(unwritten)} not written" if unwritten else f"{out_dir / 'summary.csv'} says which"
+            raise InputError(f"no space left on device in {out_dir}: {there} of {len(ordered)} pictures are there, "
+                             f"the others were not made; {said}")
+        for kind in animations:
+            for item in items:
+                _animate(item, out_dir, kind, fps, ordered)
+        if make_sheet:
+            _write_sheet(out_dir / "sheet.png", items, ordered)
+    return ordered
+
+
+def _folders_written(items, out_dir):
+    """The folders the batch writes in: its own, and each one its outputs go to."""
+    return {out_dir} | {path.parent for item in items for index, view in enumerate(item.views)
+                        for path in item.outputs(out_dir, view, index).wanted().values()}
+
+
+def _write_reports(out_dir, rows):
+    """Write ``summary.csv`` and ``index.html``; the names of those a full disk left unwritten (and removed, as the
+    ones of an earlier run would not say what is there now).
+    """
+    unwritten = []
+    for path, write in ((out_dir / "summary.csv", lambda path: _write_summary(path, rows)),
+                        (out_dir / "index.html", lambda path: _write_index(path, rows, out_dir))):
+        try:
+            write(path)
+        except OSError as exc:
+            if exc.errno not in _NO_SPACE:
+                raise
+            path.unlink(missing_ok=True)
+            unwritten.append(path.name)
+    return unwritten
+
+
+def _make_folder(folder):
+    """Make ``folder`` (and its parents) unless it exists; a folder the system refuses is bad input."""
+    try:
+        Path(folder).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot make the folder {folder}: {exc.strerror}") from None
+
+
+LOCK_NAME = ".voxrender-lock"
+
+
+@contextlib.contextmanager
+def _folder_lock(out_dir):
+    """Hold ``out_dir`` for this batch: a second batch on the same folder is refused while this one runs.
+
+    The lock is a POSIX record lock on ``out_dir/.voxrender-lock``, which holds the holder's pid for the
+    message.  The system lets go of it when its process ends, however it ends, so a killed batch's lock file
+    does not block the next run; it is this process's alone, not its workers'.  The file stays: removing it
+    would let two batches lock two different files.
+    """
+    import fcntl
+
+    fd = os.open(Path(out_dir) / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        try:
+            fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            if exc.errno not in (errno.EACCES, errno.EAGAIN):
+                raise
+            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "unknown"
+            raise InputError(f"{out_dir} is in use by another batch (process {holder}); wait for it to end, or "
+                             "give another folder") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        yield
+    finally:
+        os.close(fd)
+
+
+def _render_all(items, out_dir, jobs, scheduler, cache_dir, progress):
+    """The two phases of the batch (see the module's docstring): the summary rows, in the items' order."""
     jobs = jobs or os.cpu_count() or 1
     rows = {}
     todo = {}
     for item in items:
         for index, view in enumerate(item.views):
-            output = item.output(out_dir, view, index)
-            if _is_done(output, item.options.size):
-                rows[(item.name, view.label)] = _summary_row(item, view, output, "done earlier")
+            outputs = item.outputs(out_dir, view, index)
+            if _is_done(outputs, item.options.size):
+                rows[(item.name, view.label)] = _summary_row(item, view, outputs.picture, "done earlier")
             else:
                 todo.setdefault(id(item), (item, []))[1].append((index, view))
     bar = progress(len(todo) + sum(len(v) for _, v in todo.values())) if progress else None
     pool = _executor(jobs, scheduler)
     try:
         encodes = {pool.submit(_encode_task, item, str(cache_dir)): (item, views) for item, views in todo.values()}
-        renders = []
+        renders = {}
         for future in pool.as_completed(list(encodes)):
             item, views = encodes[future]
-            report = future.result()
+            try:
+                report = future.result()
+            except pool.died as died:
+                report = {"input": item.input, "error": _why_died(died)}
             if bar:
                 bar.update(1)
             if "error" in report:
                 for index, view in views:
                     rows[(item.name, view.label)] = _summary_row(item, view, item.output(out_dir, view, index),
-                                                                "failed", report["error"])
+                                                                "failed", report["error"],
+                                                                no_space=report.get("no_space", False))
                 if bar:
                     bar.update(len(views))
                 continue
             for index, view in views:
-                renders.append(pool.submit(_render_task, item, view, index, report["segments"], str(out_dir),
-                                           report["seconds"]))
-        for future in pool.as_completed(renders):
-            row = future.result()
-            rows[(row["name"], row["view"])] = row
+                renders[pool.submit(_render_task, item, view, index, report["segments"], str(out_dir),
+                                    report["seconds"])] = (item, view, index)
+        for future in pool.as_completed(list(renders)):
+            item, view, index = renders[future]
+            try:
+                rows[(item.name, view.label)] = future.result()
+            except pool.died as died:
+                rows[(item.name, view.label)] = _summary_row(item, view, item.output(out_dir, view, index),
+                                                             "failed", _why_died(died))
             if bar:
                 bar.update(1)
     finally:
         pool.close()
         if bar:
             bar.close()
-    ordered = [rows[(item.name, view.label)] for item in items for view in item.views]
-    for kind in animations:
-        for item in items:
-            _animate(item, out_dir, kind, fps, ordered)
-    _write_summary(out_dir / "summary.csv", ordered)
-    _write_index(out_dir / "index.html", ordered, out_dir)
-    if make_sheet:
-        _write_sheet(out_dir / "sheet.png", items, ordered)
-    return ordered
+    return [rows[(item.name, view.label)] for item in items for view in item.views]
 
 
 def _check_patterns(items, out_dir):

@@ -1,0 +1,265 @@
+"""Faults a batch survives, each produced for real: a worker killed by SIGKILL, the whole batch killed, a full
+disk (a small tmpfs), a read-only output folder (a read-only tmpfs), two batches on one folder, a tampered cache.
+
+Mounting needs root (the sandbox and CI run as root); where the system refuses a mount, the test says so and
+either skips or, for the full disk, falls back on an injected ENOSPC (see each docstring).
+"""
+
+import contextlib
+import csv
+import errno
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from voxrender import batch, output
+from voxrender._picture import RenderOptions
+from voxrender.cli import main
+from voxrender.errors import InputError
+from voxrender.pipeline import PrepOptions, ReadOptions
+
+
+@pytest.fixture
+def stacks(tmp_path):
+    """Two small volumes as .npy files."""
+    folder = tmp_path / "in"
+    folder.mkdir()
+    zz, yy, xx = np.mgrid[:20, :22, :24]
+    np.save(folder / "ball.npy", ((xx - 12) ** 2 + (yy - 11) ** 2 + (zz - 10) ** 2 <= 49).astype(np.int16) * 1000)
+    np.save(folder / "box.npy", np.pad(np.full((6, 8, 10), 1000, np.int16), 5))
+    return folder
+
+
+def items(paths, views=None, size=(32, 32)):
+    return batch.items_from([str(p) for p in paths], [], ReadOptions(), PrepOptions(threshold=500),
+                            RenderOptions(size=size), views or batch.parse_views(["anterior", "left"]),
+                            batch.Patterns())
+
+
+def read_summary(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def pictures(folder):
+    """The pictures in ``folder`` and below (not the temporaries of a write)."""
+    return [p for p in folder.rglob("*.png") if not p.name.startswith(".")]
+
+
+def partials(folder):
+    return [p for p in folder.rglob("*") if output.PARTIAL in p.name]
+
+
+@contextlib.contextmanager
+def tmpfs(folder, options):
+    """A tmpfs mounted on ``folder`` with ``options`` (``size=64k``, ``ro`` ...), unmounted after; skips the test
+    when the system refuses the mount.
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)], capture_output=True)
+    if mounted.returncode:
+        pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.decode().strip()}")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", "-l", str(folder)], check=True)
+
+
+def _killing_for_the_box(real_picture):
+    """The picture step, but a worker process (never this one) making a picture of the box kills itself."""
+    parent = os.getpid()
+
+    def picture_that_kills_for_the_box(segments, *args, **kwargs):
+        if segments.meta.get("source", "").endswith("box.npy") and os.getpid() != parent:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return real_picture(segments, *args, **kwargs)
+
+    return picture_that_kills_for_the_box
+
+
+def test_a_killed_worker_fails_its_rows_and_the_others_finish(tmp_path, stacks, monkeypatch):
+    """A worker process kills itself with SIGKILL in the middle of each picture of the box (the patched picture
+    step reaches the forked workers); the box's rows say so and the ball's pictures are all made.
+    """
+    monkeypatch.setattr(batch, "picture", _killing_for_the_box(batch.picture))
+    work = items([stacks / "ball.npy", stacks / "box.npy"], batch.parse_views(["anterior", "left", "superior"]))
+    rows = batch.run_batch(work, tmp_path / "out", jobs=2)
+    assert [r["status"] for r in rows] == ["ok"] * 3 + ["failed"] * 3
+    assert all(r["error"] == "its worker process died (killed by SIGKILL)" for r in rows[3:])
+    assert all(iio.imread(r["output"]).shape == (32, 32) for r in rows[:3])
+    assert [r["status"] for r in read_summary(tmp_path / "out" / "summary.csv")] == [r["status"] for r in rows]
+
+
+def test_a_killed_dask_worker_fails_its_rows_and_the_others_finish(tmp_path, stacks, monkeypatch):
+    """The same on a local Dask cluster whose workers are forked (so that they have the patched picture step), and
+    as Dask runs it: a task whose workers died four times is given up (Dask counts each task that was on a dying
+    worker, so the box has one picture to make, and the innocent are not tried four times in a row).
+    """
+    pytest.importorskip("distributed", reason="Dask is the extra 'distributed'")
+    import dask
+
+    monkeypatch.setattr(batch, "picture", _killing_for_the_box(batch.picture))
+    work = items([stacks / "ball.npy", stacks / "box.npy"])
+    work[1].views = work[1].views[:1]
+    with dask.config.set({"distributed.worker.multiprocessing-method": "fork"}):
+        rows = batch.run_batch(work, tmp_path / "out", jobs=2, scheduler="local")
+    assert [r["status"] for r in rows] == ["ok", "ok", "failed"]
+    assert rows[2]["error"].startswith("its worker process died")
+
+
+def test_a_killed_batch_is_finished_by_the_next_run(tmp_path, stacks):
+    """``voxrender batch`` run as a process and killed (SIGKILL) once its first pictures are there: every picture
+    it left is whole, the lock it left does not stop the rerun, and the rerun makes the rest, clearing the
+    temporaries a kill in the middle of a write leaves.
+    """
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "voxrender.cli", "batch", str(stacks / "ball.npy"), "--threshold", "500",
+               "--turntable", "40", "--size", "96", "--jobs", "1", "-o", str(out)]
+    running = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        while not pictures(out) and time.monotonic() < deadline and running.poll() is None:
+            time.sleep(0.005)
+    finally:
+        running.send_signal(signal.SIGKILL)
+        running.wait()
+    if running.returncode != -signal.SIGKILL:
+        pytest.skip("the batch ended before it could be killed")
+    (out / "ball" / f".turn039.png{output.PARTIAL}dead1234.png").write_bytes(b"\x89PNG half")   # as a kill leaves
+    left = {p.name for p in pictures(out)}
+    assert 0 < len(left) < 40 and not (out / "summary.csv").exists() and (out / batch.LOCK_NAME).exists()
+    assert all(iio.imread(out / "ball" / name).shape[:2] == (96, 96) for name in left)     # whole, or not there
+
+    result = subprocess.run(command, capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    rows = read_summary(out / "summary.csv")
+    assert len(rows) == 40 and {r["status"] for r in rows} <= {"ok", "done earlier"}
+    assert {r["view"] + ".png" for r in rows if r["status"] == "done earlier"} == left
+    assert partials(out) == []
+
+
+def _check_full_disk(out, result):
+    """One line; no partial file; each picture there whole; the summary, when it fitted, says which are there."""
+    assert result.exit_code == 2
+    assert len(result.stderr.splitlines()) == 1 and "no space left on device" in result.stderr, result.stderr
+    assert partials(out) == []
+    there = set(pictures(out))
+    assert there and all(iio.imread(p).shape[:2] == (96, 96) for p in there)
+    assert f"{len(there)} of 24 pictures are there" in result.stderr
+    if (out / "summary.csv").exists():
+        rows = read_summary(out / "summary.csv")
+        assert there == {Path(r["output"]) for r in rows if r["status"] == "ok"}
+        assert all(r["error"].endswith("No space left on device") for r in rows if r["status"] == "failed")
+    else:
+        assert "summary.csv and index.html not written" in result.stderr
+
+
+def _full_batch(stacks, out, cache):
+    return CliRunner().invoke(main, ["batch", str(stacks / "ball.npy"), "--threshold", "500", "--turntable", "24",
+                                     "--size", "96", "--jobs", "1", "--cache", str(cache), "-o", str(out)])
+
+
+def test_a_full_disk_gives_one_line_and_a_true_summary(tmp_path, stacks):
+    """The output folder is a 48 kB tmpfs: it fills after a few pictures."""
+    with tmpfs(tmp_path / "small", "size=48k") as out:
+        _check_full_disk(out, _full_batch(stacks, out, tmp_path / "cache"))
+
+
+def test_a_full_disk_injected(tmp_path, stacks, monkeypatch):
+    """The same without a mount (for systems that refuse one): the write of the picture fails with ENOSPC, as on a
+    full disk, after the first five pictures.
+    """
+    real_write_bytes, written = type(tmp_path).write_bytes, []
+
+    def write_bytes_until_full(path, data):
+        if path.name.endswith(".png") and output.PARTIAL in path.name:
+            if len(written) >= 5:
+                real_write_bytes(path, data[:100])         # a partial file, as the disk filled
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+            written.append(path)
+        return real_write_bytes(path, data)
+
+    monkeypatch.setattr(type(tmp_path), "write_bytes", write_bytes_until_full)
+    out = tmp_path / "out"
+    result = _full_batch(stacks, out, tmp_path / "cache")
+    _check_full_disk(out, result)
+    assert len(list(out.rglob("*.png"))) == 5 and len(read_summary(out / "summary.csv")) == 24
+
+
+def test_a_read_only_output_folder_is_refused_before_any_rendering(tmp_path, stacks, monkeypatch):
+    """A read-only tmpfs as the output folder (root, who runs here, writes through a chmod 0o555; a read-only
+    file system stops root too).
+    """
+    monkeypatch.setattr(batch, "picture", lambda *args, **kwargs: pytest.fail("rendered into a read-only folder"))
+    with tmpfs(tmp_path / "ro", "ro,size=16k") as out:
+        with pytest.raises(InputError, match="cannot write in .*Read-only file system"):
+            batch.run_batch(items([stacks / "ball.npy"]), out, jobs=1)
+        result = CliRunner().invoke(main, ["batch", str(stacks / "ball.npy"), "-o", str(out), "--jobs", "1"])
+        assert result.exit_code == 2 and len(result.stderr.splitlines()) == 1
+
+
+HOLD_THE_LOCK = textwrap.dedent("""
+    import sys
+    from voxrender import batch
+    with batch._folder_lock(sys.argv[1]):
+        print("held", flush=True)
+        sys.stdin.read()
+""")
+
+
+def test_two_batches_on_one_folder(tmp_path, stacks):
+    """A second process holds the folder's lock: the batch says the folder is in use, by which process.  Once that
+    process is killed (its lock file stays, with its dead pid), the next batch runs.
+    """
+    out = tmp_path / "out"
+    out.mkdir()
+    holder = subprocess.Popen([sys.executable, "-c", HOLD_THE_LOCK, str(out)], stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        with pytest.raises(InputError, match=f"in use by another batch \\(process {holder.pid}\\)"):
+            batch.run_batch(items([stacks / "ball.npy"]), out, jobs=1)
+    finally:
+        holder.kill()
+        holder.wait()
+    assert (out / batch.LOCK_NAME).read_text().strip() == str(holder.pid)
+    rows = batch.run_batch(items([stacks / "ball.npy"]), out, jobs=1)
+    assert [r["status"] for r in rows] == ["ok", "ok"]
+
+
+def test_a_damaged_or_tampered_cache_entry_is_made_again(tmp_path, stacks):
+    """Bytes flipped in the middle of the cached .vxs (where the file's own checks cannot see them), then a
+    garbled record: each time the entry is found out by its checksum and made again, and the pictures are the same.
+    """
+    out = tmp_path / "out"
+    work = items([stacks / "ball.npy"])
+    batch.run_batch(work, out, jobs=1)
+    entry = next((out / ".voxrender-cache").glob("*.vxs"))
+    sound, first = entry.read_bytes(), iio.imread(out / "ball" / "left.png")
+
+    def render_again():
+        for picture in (out / "ball").iterdir():
+            picture.unlink()
+        assert [r["status"] for r in batch.run_batch(work, out, jobs=1)] == ["ok", "ok"]
+        assert entry.read_bytes() == sound and np.array_equal(iio.imread(out / "ball" / "left.png"), first)
+
+    tampered = bytearray(sound)
+    tampered[len(sound) // 2: len(sound) // 2 + 8] = bytes(~b & 0xFF for b in tampered[len(sound) // 2:][:8])
+    entry.write_bytes(bytes(tampered))
+    assert not batch._is_intact(entry)
+    render_again()
+    batch._record_of(entry).write_text("{not json")
+    assert not batch._is_intact(entry)
+    render_again()
+    batch._record_of(entry).unlink()                 # an entry whose record was never written: made again too
+    render_again()
+    assert batch._is_intact(entry)
