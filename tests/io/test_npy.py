@@ -26,3 +26,19 @@ def test_booleans_become_zero_and_one(tmp_path):
 def test_cut_npy_files_are_bad_input(tmp_path):
     np.save(tmp_path / "v.npy", random_stack())
     assert refused_cuts(tmp_path / "v.npy", lambda: io.read_volume(tmp_path / "v.npy")) >= 30
+
+
+def test_a_header_promising_more_than_the_file_holds_says_both(tmp_path):
+    """30000³ int16 over 64 bytes: was numpy's 'mmap length is greater than file size'."""
+    header = "{'descr': '<i2', 'fortran_order': False, 'shape': (30000, 30000, 30000), }"
+    header += " " * (117 - len(header)) + "\n"
+    (tmp_path / "huge.npy").write_bytes(b"\x93NUMPY\x01\x00" + len(header).to_bytes(2, "little") + header.encode()
+                                        + bytes(64))
+    with pytest.raises(InputError, match=r"holds 64 bytes of voxels, of the 54 TB its header promises"):
+        io.read_volume(tmp_path / "huge.npy")
+
+
+def test_an_object_array_is_bad_input(tmp_path):
+    np.save(tmp_path / "objects.npy", np.array([[[None]]], dtype=object), allow_pickle=True)
+    with pytest.raises(InputError, match="objects.npy"):
+        io.read_volume(tmp_path / "objects.npy")

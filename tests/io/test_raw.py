@@ -47,3 +47,12 @@ def test_raw_slices_need_their_layout(tmp_path):
     with pytest.raises(InputError, match="raw slices need their layout") as info:
         io.read_volume(tmp_path / "all.raw", format="raw")
     assert info.value.parameter == "raw"
+
+
+def test_slices_too_big_for_memory_are_refused_with_their_size(tmp_path, monkeypatch):
+    from voxrender.io import _shared
+
+    random_stack().astype("<u2").tofile(tmp_path / "all.raw")
+    monkeypatch.setattr(_shared, "free_memory", lambda: 100)
+    with pytest.raises(InputError, match=r"its 5x6x7 uint16 voxels take 420 bytes, more than the 100 bytes of memory"):
+        io.read_volume(tmp_path / "all.raw", raw=io.RawLayout(7, 6, np.dtype("<u2")))

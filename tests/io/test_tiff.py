@@ -46,3 +46,14 @@ def test_cut_tiffs_are_bad_input(tmp_path, compression):
 
     tifffile.imwrite(tmp_path / "v.tif", random_stack(), imagej=True, compression=compression)
     assert refused_cuts(tmp_path / "v.tif", lambda: io.read_volume(tmp_path / "v.tif")) >= 20
+
+
+def test_pages_too_big_for_memory_are_refused_with_their_size(tmp_path, monkeypatch):
+    import tifffile
+
+    from voxrender.io import _shared
+
+    tifffile.imwrite(tmp_path / "v.tif", np.zeros((3, 10, 10), np.uint16))
+    monkeypatch.setattr(_shared, "free_memory", lambda: 100)
+    with pytest.raises(InputError, match=r"its 3x10x10 uint16 voxels take 600 bytes, more than the 100 bytes"):
+        io.read_volume(tmp_path / "v.tif")

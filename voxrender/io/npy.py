@@ -5,23 +5,45 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from ._shared import Reader, Volume, first_line
+from ._shared import Reader, Volume, check_fits, check_holds, first_line, promised_bytes
 
 
 def read_npy(path, progress):
     """Read a 3-D numeric ``.npy`` array (booleans become 0 and 1)."""
     from tokenize import TokenError
 
+    damaged = (ValueError, OSError, EOFError, TokenError)        # a garbled header can fail numpy's tokenizer
     try:
+        shape, dtype, offset = _header(path)
+        if dtype is not None:                                  # mapped, not read: only the file must hold them
+            check_holds(path, promised_bytes(shape, dtype), path.stat().st_size - offset)
         values = np.load(path, mmap_mode="r", allow_pickle=False)
-    except (ValueError, OSError, EOFError, TokenError) as exc:    # a garbled header can fail numpy's tokenizer
+    except InputError:
+        raise
+    except damaged as exc:
         raise InputError(f"cannot read {path} as a .npy array: {first_line(exc)}") from None
     if values.ndim != 3 or values.dtype.kind not in "uifb":
         raise InputError(f"{path} holds a {values.ndim}-D {values.dtype} array; voxrender needs a 3-D "
                          "numeric array [z, y, x]")
     if values.dtype.kind == "b":
+        check_fits(values.shape, np.uint8, path)
         values = values.astype(np.uint8)
     return Volume(values, (1.0, 1.0, 1.0), {"spacing_from": "default (.npy carries no spacing)"})
+
+
+def _header(path):
+    """The shape, dtype and data offset a ``.npy`` header promises, by numpy's own header readers (``None`` for the
+    dtype of a format version they do not read).
+    """
+    from numpy.lib import format
+
+    readers = {(1, 0): format.read_array_header_1_0, (2, 0): format.read_array_header_2_0}
+    with open(path, "rb") as f:
+        version = format.read_magic(f)
+        if version not in readers:
+            return None, None, None
+        shape, _, dtype = readers[version](f)
+        return shape, dtype, f.tell()
 
 
 READER = Reader(read_npy, (".npy",))

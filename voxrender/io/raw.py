@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from ._shared import NOTE_SUFFIXES, Reader, Volume, files_in
+from ._shared import NOTE_SUFFIXES, Reader, Volume, check_fits, files_in
 
 # Files that sit beside raw slices but are not slices: headers, and notes.
 NOT_SLICES = {".nhdr", ".nrrd", ".mhd", ".hdr"} | NOTE_SUFFIXES
@@ -26,6 +26,7 @@ def read_raw(path, progress, raw):
             raise InputError(f"{f} is {size} bytes, not a multiple of one {width}x{height} {dtype.name} slice "
                              f"({slice_bytes} bytes); check the raw layout", parameter="raw")
         counts.append(size // slice_bytes)
+    check_fits((sum(counts), height, width), dtype, path)
     values = np.empty((sum(counts), height, width), dtype.newbyteorder("="))
     z = 0
     for f, count in progress(list(zip(files, counts, strict=True)), len(files), "reading raw slices"):

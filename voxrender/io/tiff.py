@@ -7,7 +7,7 @@ import re
 import numpy as np
 
 from ..errors import InputError
-from ._shared import Reader, Volume, first_line, to_grey
+from ._shared import Reader, Volume, check_fits, first_line, to_grey
 from .images import damaged_file_errors
 
 SUFFIXES = (".tif", ".tiff")
@@ -16,10 +16,16 @@ SUFFIXES = (".tif", ".tiff")
 def read_tiff(path, progress):
     """Read the pages of a TIFF as slices (colour pages become grey)."""
     import imageio.v3 as iio
+    import tifffile
 
     try:
+        with tifffile.TiffFile(path) as tif:               # what imageio will allocate: the first series
+            series = tif.series[0]
+            check_fits(series.shape, series.dtype, path)
         values = iio.imread(path, index=None)
-    except damaged_file_errors() as exc:
+    except InputError:
+        raise
+    except (*damaged_file_errors(), IndexError) as exc:       # IndexError: a file of no series
         raise InputError(f"cannot read TIFF {path}: {first_line(exc)}") from None
     if values.ndim == 2:
         raise InputError(f"{path} is a single 2-D image; give a multi-page TIFF or a folder of slices")
