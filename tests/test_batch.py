@@ -142,8 +142,13 @@ def test_patterns_are_checked(tmp_path, stacks):
     with pytest.raises(InputError, match="twice"):
         batch.run_batch(work, tmp_path, jobs=1)
     work[0].patterns = batch.Patterns("{nope}/{view}.png")
-    with pytest.raises(InputError, match="not valid"):
+    with pytest.raises(InputError, match="not valid") as info:
         batch.run_batch(work, tmp_path, jobs=1)
+    assert info.value.parameter == "picture"                 # --pattern
+    work[0].patterns = batch.Patterns(stats_json="{name}/{nope}.json")
+    with pytest.raises(InputError, match="'{name}/{nope}.json' is not valid") as info:
+        batch.run_batch(work, tmp_path, jobs=1)
+    assert info.value.parameter == "stats_json"              # --stats-json, not --pattern
     work[0].patterns = batch.Patterns(depth="{name}/{view}.png")
     with pytest.raises(InputError, match="must end in .npy") as info:
         batch.run_batch(work, tmp_path, jobs=1)
@@ -239,8 +244,12 @@ def test_a_manifest_output_outside_the_folder_is_refused_in_one_line(tmp_path, s
     result = CliRunner().invoke(main, ["batch", "--manifest", str(tmp_path / "m.csv"), "--threshold", "500",
                                        "-o", str(tmp_path / "out" / "deep"), "--jobs", "1"])
     assert result.exit_code == 2 and len(result.stderr.splitlines()) == 1
-    assert "the manifest's output '../../escaped.png'" in result.stderr and "--pattern" not in result.stderr
+    assert "the manifest's output pattern '../../escaped.png'" in result.stderr and "--pattern" not in result.stderr
     assert not (tmp_path / "escaped.png").exists() and not (tmp_path / "out").exists()
     result = CliRunner().invoke(main, ["batch", str(stacks / "ball.npy"), "--pattern", "/tmp/{name}.png",
                                        "-o", str(tmp_path / "out"), "--jobs", "1"])
     assert result.exit_code == 2 and result.stderr.startswith("error: --pattern: output pattern '/tmp/{name}.png'")
+    (tmp_path / "m.csv").write_text(f"input,output\n{stacks / 'ball.npy'},{{nope}}.png\n")
+    result = CliRunner().invoke(main, ["batch", "--manifest", str(tmp_path / "m.csv"), "-o", str(tmp_path / "out")])
+    assert result.exit_code == 2 and "the manifest's output pattern '{nope}.png' is not valid" in result.stderr
+    assert "--pattern" not in result.stderr

@@ -128,9 +128,17 @@ class Patterns:
     """
 
     def outputs(self, out_dir, **fields):
-        """The :class:`~voxrender._picture.Outputs` of one picture: each pattern filled in with ``fields``."""
-        return Outputs(**{name: None if pattern is None else Path(out_dir) / pattern.format(**fields)
-                          for name, pattern in asdict(self).items()})
+        """The :class:`~voxrender._picture.Outputs` of one picture: each pattern filled in with ``fields``; an
+        :class:`InputError` names the output whose pattern is not valid.
+        """
+        paths = {}
+        for name, pattern in asdict(self).items():
+            try:
+                paths[name] = None if pattern is None else Path(out_dir) / pattern.format(**fields)
+            except (KeyError, IndexError, ValueError) as exc:
+                raise InputError(f"output pattern {pattern!r} is not valid: use {{name}}, {{view}}, {{method}}, "
+                                 f"{{index}} ({type(exc).__name__}: {exc})", parameter=name) from None
+        return Outputs(**paths)
 
 
 @dataclass
@@ -842,14 +850,14 @@ def _check_patterns(items, out_dir):
         for index, view in enumerate(item.views):
             try:
                 outputs = item.outputs(out_dir, view, index)
-            except (KeyError, IndexError, ValueError) as exc:
-                raise InputError(f"an output pattern of {item.input} is not valid: use {{name}}, {{view}}, "
-                                 f"{{method}}, {{index}} ({exc})",
-                                 parameter=None if item.manifest_outputs else "pattern") from None
+            except InputError as exc:
+                if exc.parameter not in item.manifest_outputs:
+                    raise
+                raise InputError(f"{item.input}: the manifest's {exc.message}") from None
             outputs.check(item.options)
             for kind, path in outputs.wanted().items():
                 pattern, ending = getattr(item.patterns, kind), OUTPUTS[kind].suffix
-                given, parameter = ((f"{item.input}: the manifest's output {pattern!r}", None)
+                given, parameter = ((f"{item.input}: the manifest's output pattern {pattern!r}", None)
                                     if kind in item.manifest_outputs else (f"output pattern {pattern!r}", kind))
                 resolved = os.path.realpath(path)
                 if os.path.commonpath([folder, resolved]) != folder:
@@ -888,7 +896,8 @@ def _animate(item, out_dir, kind, fps, rows):
             else:
                 iio.imwrite(tmp, pictures, extension=".mp4", fps=fps, codec="libx264", macro_block_size=1)
     except (ImportError, OSError, RuntimeError, ValueError) as exc:
-        raise InputError(f"cannot write {target}: {exc} (MP4 needs pip install 'voxrender[video]')") from None
+        needs = " (MP4 needs pip install 'voxrender[video]')" if kind == "mp4" else ""
+        raise InputError(f"cannot write {target}: {exc}{needs}") from None
 
 
 def _write_index(path, rows, out_dir):
