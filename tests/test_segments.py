@@ -105,3 +105,67 @@ def test_labels_encoded_in_blocks_of_rows_give_the_same_runs(monkeypatch, block)
     for row, start, end, label in zip(encoded.run_rows(), encoded.starts, encoded.ends, encoded.labels, strict=True):
         again[row * 6 + start:row * 6 + end + 1] = label
     assert np.array_equal(again.reshape(values.shape), values)
+
+
+def _rewritten(path, change, arrays=None):
+    """``path`` (a .vxs file) with its JSON header changed by ``change(header)`` and its arrays by ``arrays``
+    (name: new values of the same size and type), written back with the header's new length."""
+    import json
+
+    header, mapped = segments.read_sections(path)
+    data = {name: np.array(array) for name, array in mapped.items()}
+    for name, values in (arrays or {}).items():
+        data[name][...] = values
+    change(header)
+    text = json.dumps(header).encode()
+    start = -(-(len(segments.MAGIC) + 8 + len(text)) // 64) * 64
+    body = bytearray(max(start + spec["offset"] + data[name].nbytes for name, spec in header["arrays"].items()
+                         if name in data))
+    for name, spec in header["arrays"].items():
+        if name in data:
+            body[start + spec["offset"]:start + spec["offset"] + data[name].nbytes] = data[name].tobytes()
+    head = segments.MAGIC + np.uint64(len(text)).tobytes() + text
+    path.write_bytes(head + bytes(body[len(head):]))
+    return path
+
+
+def _set(key, value, inside=None):
+    def change(header):
+        (header[inside] if inside else header)[key] = value
+    return change
+
+
+@pytest.mark.parametrize("change, arrays, message", [
+    (_set("meta", "x"), None, "its meta is not a table of names"),
+    (_set("label_table", [1, 2], "meta"), None, "its meta is not a table of names"),
+    (_set("shape", [4, 4]), None, "its shape .* is not three positive sizes"),
+    (_set("shape", [4, 4, -4]), None, "its shape .* is not three positive sizes"),
+    (_set("spacing", [1, "a", 1]), None, "its spacing .* is not three positive numbers"),
+    (_set("spacing", [1, 0, 1]), None, "its spacing .* is not three positive numbers"),
+    (lambda header: header["arrays"]["starts"].update(count=10**9), None, "its array starts .* is not within"),
+    (lambda header: header["arrays"]["starts"].update(offset=-64), None, "its array starts .* is not within"),
+    (lambda header: header["arrays"]["starts"].update(dtype="|O"), None, "its array starts .* is not within"),
+    (lambda header: header["arrays"]["ends"].update(dtype="<f4"), None, "an array is not of integers"),
+    (lambda header: header["arrays"].pop("ends"), None, "it lacks ends"),
+    (lambda header: None, {"ends": 9}, "runs leave their grid"),
+    (lambda header: None, {"starts": -1}, "runs leave their grid"),
+    (lambda header: None, {"offsets": 0}, "index and runs disagree"),
+])
+def test_a_damaged_vxs_file_is_bad_input(tmp_path, change, arrays, message):
+    """Each was an internal error (exit 1) when loaded or rendered: a meta that is no table (found by the fuzzing
+    gate), a shape or spacing of the wrong kind, arrays outside the file or runs outside the grid."""
+    path = tmp_path / "v.vxs"
+    segments.save(segments.encode(np.ones((4, 4, 4), bool)), path)
+    _rewritten(path, change, arrays)
+    with pytest.raises(InputError, match=f"v.vxs is a damaged .vxs file \\({message}"):
+        segments.load(path)
+
+
+def test_a_header_length_beyond_the_file_is_bad_input(tmp_path):
+    path = tmp_path / "v.vxs"
+    segments.save(segments.encode(np.ones((4, 4, 4), bool)), path)
+    whole = bytearray(path.read_bytes())
+    whole[len(segments.MAGIC):len(segments.MAGIC) + 8] = np.uint64(2**63).tobytes()
+    path.write_bytes(bytes(whole))
+    with pytest.raises(InputError, match="its header of 9223372036854775808 bytes is longer than the file"):
+        segments.load(path)

@@ -18,6 +18,7 @@ slice or a row is read without reading the rest.
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -296,29 +297,38 @@ def save(segments, path, sections=None):
 
 def read_sections(path):
     """The header and the memory-mapped arrays of a ``.vxs`` file: ``(header, {name: array})``; each array is
-    a view of the file's mapping (:func:`is_mapped`), read from disk as it is used.
+    a view of the file's mapping (:func:`is_mapped`), read from disk as it is used.  An array the file does not
+    hold whole, or of a type that is not a number, is a damaged file.
     """
     path = Path(path)
     try:
+        size = path.stat().st_size
         with open(path, "rb") as f:
             start = f.read(len(MAGIC))
             if start != MAGIC:
                 older = " written by an older voxrender; encode it again" if start.startswith(b"PK") else ""
                 raise InputError(f"{path} is not a voxrender segments file (.vxs){older}")
             header_length = int(np.frombuffer(f.read(8), "<u8")[0])
+            if header_length > size - len(MAGIC) - 8:
+                raise _damaged(path, f"its header of {header_length} bytes is longer than the file")
             header = json.loads(f.read(header_length))
         data_start = -(-(len(MAGIC) + 8 + header_length) // _ALIGN) * _ALIGN
         raw = np.asarray(np.memmap(path, np.uint8, mode="r"))   # plain views of the mapping: no memmap overhead
         arrays = {}
         for name, spec in header["arrays"].items():
-            begin = data_start + spec["offset"]
-            dtype = np.dtype(spec["dtype"])
-            arrays[name] = raw[begin:begin + spec["count"] * dtype.itemsize].view(dtype)
+            begin, count, dtype = int(spec["offset"]), int(spec["count"]), np.dtype(spec["dtype"])
+            if dtype.kind not in "biuf" or begin < 0 or count < 0 or data_start + begin + count * dtype.itemsize > size:
+                raise _damaged(path, f"its array {name} ({count} of {dtype}) is not within the file")
+            arrays[name] = raw[data_start + begin:data_start + begin + count * dtype.itemsize].view(dtype)
     except InputError:
         raise
-    except (OSError, ValueError, KeyError, IndexError, TypeError) as exc:
+    except (OSError, ValueError, KeyError, IndexError, TypeError, AttributeError) as exc:
         raise InputError(f"{path} is a damaged .vxs file ({type(exc).__name__}); encode it again") from None
     return header, arrays
+
+
+def _damaged(path, what):
+    return InputError(f"{path} is a damaged .vxs file ({what}); encode it again")
 
 
 def is_mapped(array):
@@ -343,19 +353,39 @@ def load(path):
 
 
 def from_sections(header, arrays, path):
-    """The :class:`Segments` of a ``.vxs`` file's header and arrays (:func:`read_sections`)."""
-    shape = tuple(header["shape"])
-    if arrays["offsets"].size != shape[0] * shape[1] + 1 or arrays["starts"].size != arrays["offsets"][-1]:
-        raise InputError(f"{path} is a damaged .vxs file (index and runs disagree); encode it again")
-    meta = header.get("meta", {})
+    """The :class:`Segments` of a ``.vxs`` file's header and arrays (:func:`read_sections`), checked: runs that
+    leave their grid or an index that does not add up is a damaged file, not a renderer's error later.
+    """
+    shape, spacing, meta = header.get("shape"), header.get("spacing"), header.get("meta", {})
+    if not (isinstance(shape, list) and len(shape) == 3 and all(type(n) is int and n > 0 for n in shape)):
+        raise _damaged(path, f"its shape {shape!r} is not three positive sizes")
+    shape = tuple(shape)
+    if not (isinstance(spacing, list) and len(spacing) == 3
+            and all(type(v) in (int, float) and np.isfinite(v) and v > 0 for v in spacing)):
+        raise _damaged(path, f"its spacing {spacing!r} is not three positive numbers")
+    if not isinstance(meta, dict) or not isinstance(meta.get("label_table", {}), dict):
+        raise _damaged(path, "its meta is not a table of names")
+    missing = [name for name in ("offsets", "starts", "ends") if name not in arrays]
+    if missing:
+        raise _damaged(path, f"it lacks {', '.join(missing)}")
+    if any(array.dtype.kind not in "iu" for array in arrays.values()):
+        raise _damaged(path, "an array is not of integers")
+    offsets, starts, ends = arrays["offsets"], arrays["starts"], arrays["ends"]
+    if (offsets.size != shape[0] * shape[1] + 1 or offsets[0] != 0 or starts.size != offsets[-1]
+            or ends.size != starts.size or np.any(offsets[1:] < offsets[:-1])):
+        raise _damaged(path, "index and runs disagree")
+    if starts.size and (starts.min() < 0 or ends.max() >= shape[2] or np.any(starts > ends)):
+        raise _damaged(path, "runs leave their grid")
     normals = None
     if "normal_index" in arrays:                 # files written before normals were kept have none
         from .normals import SurfaceNormals
 
-        normals = SurfaceNormals(shape, arrays["normal_index"], arrays["normal_packed"].reshape(-1, 2),
-                                 meta.get("normals_from", "grey values"))
+        index, packed = arrays["normal_index"], arrays.get("normal_packed", np.zeros(1, np.int16))
+        if (packed.size != 2 * index.size
+                or index.size and (index[0] < 0 or index[-1] >= math.prod(shape) or np.any(index[1:] <= index[:-1]))):
+            raise _damaged(path, "surface normals and their voxels disagree")
+        normals = SurfaceNormals(shape, index, packed.reshape(-1, 2), str(meta.get("normals_from", "grey values")))
     labels = arrays.get("labels")           # single-object files have none
-    if labels is not None and labels.size != arrays["starts"].size:
-        raise InputError(f"{path} is a damaged .vxs file (runs and labels disagree); encode it again")
-    return Segments(shape, arrays["starts"], arrays["ends"], arrays["offsets"], tuple(header["spacing"]), meta,
-                    normals, labels)
+    if labels is not None and labels.size != starts.size:
+        raise _damaged(path, "runs and labels disagree")
+    return Segments(shape, starts, ends, offsets, tuple(spacing), meta, normals, labels)
