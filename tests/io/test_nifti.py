@@ -176,3 +176,17 @@ def test_a_damaged_vox_offset_is_bad_input_in_one_line(tmp_path, capfd, offset):
     with pytest.raises(InputError, match="v.nii"):
         io.read_volume(tmp_path / "v.nii")
     assert capfd.readouterr().err == ""
+
+
+@pytest.mark.parametrize("name", ["four.nii", "four.nii.gz"])
+def test_a_cut_4d_file_is_bad_input(tmp_path, name):
+    """nibabel's 'Whoops, not enough data in file' when it read a frame was an internal error (the fuzzing gate)."""
+    import nibabel
+
+    data = np.random.default_rng(0).integers(0, 999, (6, 5, 4, 3)).astype(np.int16)
+    nibabel.save(nibabel.Nifti1Image(data, np.eye(4)), str(tmp_path / name))
+    whole = (tmp_path / name).read_bytes()
+    (tmp_path / name).write_bytes(whole[:len(whole) * 2 // 5])
+    for frame in range(3):
+        with pytest.raises(InputError, match=name):
+            io.read_volume(tmp_path / name, frame=frame)

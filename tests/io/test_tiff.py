@@ -57,3 +57,15 @@ def test_pages_too_big_for_memory_are_refused_with_their_size(tmp_path, monkeypa
     monkeypatch.setattr(_shared, "free_memory", lambda: 100)
     with pytest.raises(InputError, match=r"its 3x10x10 uint16 voxels take 600 bytes, more than the 100 bytes"):
         io.read_volume(tmp_path / "v.tif")
+
+
+def test_a_cut_tiff_is_one_error_without_tifffiles_log(tmp_path, capfd):
+    """tifffile logged 'invalid page offset' before the error: two lines (found by the fuzzing gate)."""
+    import tifffile
+
+    tifffile.imwrite(tmp_path / "x.tif", random_stack((6, 20, 20)))
+    whole = (tmp_path / "x.tif").read_bytes()
+    (tmp_path / "x.tif").write_bytes(whole[:len(whole) * 2 // 5])
+    with pytest.raises(InputError, match="x.tif"):
+        io.read_volume(tmp_path / "x.tif")
+    assert capfd.readouterr().err == ""

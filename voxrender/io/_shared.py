@@ -5,6 +5,8 @@ the listing of folders, the filling of stacks and the checks they have in common
 from __future__ import annotations
 
 import bz2
+import contextlib
+import logging
 import math
 import os
 import re
@@ -167,6 +169,20 @@ def first_line(exc):
     """The first line of an exception's message (a library's messages can run to many lines), for ours."""
     text = str(exc).strip().splitlines()
     return (text[0] if text else type(exc).__name__)[:200]
+
+
+@contextlib.contextmanager
+def quiet_log(name):
+    """Keep the log of library ``name`` quiet while it reads: it logs what it mends or skips in a damaged file,
+    which the reader's one error line (or the volume) says well enough.
+    """
+    logger = logging.getLogger(name)
+    level = logger.level
+    logger.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
 
 
 def to_grey(image, name):

@@ -6,7 +6,7 @@ import struct
 import zlib
 
 from ..errors import InputError
-from ._shared import Reader, Volume, files_in, fill_stack, first_line, listed, to_grey
+from ._shared import Reader, Volume, files_in, fill_stack, first_line, listed, quiet_log, to_grey
 
 SUFFIXES = (".png", ".tif", ".tiff", ".bmp", ".jpg", ".jpeg")
 
@@ -37,7 +37,8 @@ def read_images(folder, progress):
 
     def read(f):
         try:
-            image = iio.imread(f)
+            with quiet_log("tifffile"):
+                image = iio.imread(f)
         except damaged as exc:
             raise InputError(f"cannot read image {f}: {first_line(exc)}") from None
         return to_grey(image, f.name), f.name

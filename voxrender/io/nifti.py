@@ -24,6 +24,7 @@ from ._shared import (
     folder_of_volumes,
     inflated_size,
     promised_bytes,
+    quiet_log,
     volume_files,
 )
 
@@ -41,34 +42,28 @@ def read_nifti(path, progress, frame=None):
     # what nibabel raises for a damaged file, with gzip's for a .nii.gz and numpy's memory map's for sizes that
     # leave it a negative length
     damaged = (ImageFileError, HeaderDataError, OSError, EOFError, ValueError, zlib.error, OverflowError)
-    logger = nibabel.imageglobals.logger
-    level = logger.level
-    logger.setLevel(50)                              # nibabel logs header repairs; the errors below say enough
     try:
-        image = nibabel.load(str(path))
+        with quiet_log("nibabel.global"):                    # nibabel logs the header repairs it makes
+            image = nibabel.load(str(path))
         header = image.header
         shape = image.shape
     except damaged as exc:
         raise InputError(f"cannot read {path} as NIfTI: {first_line(exc)}") from None
-    finally:
-        logger.setLevel(level)
     _check_a_volume(path, image)
     with nibabel.openers.ImageOpener(str(path)) as opener:     # as stored: loading mends a zero pixdim to 1
         stored = type(header).from_fileobj(opener, check=False)
     pixdim = [float(v) for v in stored["pixdim"][1:4]]
     if not all(np.isfinite(v) and v > 0 for v in pixdim):
         raise InputError(f"{path}: its voxel sizes (pixdim) {pixdim} must be positive; the header is damaged")
-    data = image.dataobj
     if len(shape) == 4:
         frame = check_frame(path, frame, shape[3])
-        data = data[..., frame]
     else:
         check_frame(path, frame)
         if len(shape) != 3:
             raise InputError(f"{path} holds a {len(shape)}-D image; voxrender needs a 3-D volume")
     _check_sizes(path, image, shape)
-    try:
-        values = np.asanyarray(data)
+    try:                                                     # of a 4-D file, nibabel reads only the frame
+        values = np.asanyarray(image.dataobj[..., frame] if len(shape) == 4 else image.dataobj)
     except damaged as exc:                                   # a truncated or corrupt file
         raise InputError(f"cannot read the voxels of {path}: {first_line(exc)}; the file is truncated or damaged") \
             from None

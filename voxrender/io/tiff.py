@@ -7,7 +7,7 @@ import re
 import numpy as np
 
 from ..errors import InputError
-from ._shared import Reader, Volume, check_fits, first_line, to_grey
+from ._shared import Reader, Volume, check_fits, first_line, quiet_log, to_grey
 from .images import damaged_file_errors
 
 SUFFIXES = (".tif", ".tiff")
@@ -19,10 +19,11 @@ def read_tiff(path, progress):
     import tifffile
 
     try:
-        with tifffile.TiffFile(path) as tif:               # what imageio will allocate: the first series
+        with quiet_log("tifffile"), tifffile.TiffFile(path) as tif:    # what imageio allocates: the first series
             series = tif.series[0]
             check_fits(series.shape, series.dtype, path)
-        values = iio.imread(path, index=None)
+        with quiet_log("tifffile"):
+            values = iio.imread(path, index=None)
     except InputError:
         raise
     except (*damaged_file_errors(), IndexError) as exc:       # IndexError: a file of no series
@@ -42,7 +43,7 @@ def _tiff_spacing(path):
     units = {"mm": 1.0, "millimeter": 1.0, "um": 1e-3, "µm": 1e-3, "micron": 1e-3, "micrometer": 1e-3,
              "nm": 1e-6, "cm": 10.0, "m": 1000.0}
     try:
-        with tifffile.TiffFile(path) as tif:
+        with quiet_log("tifffile"), tifffile.TiffFile(path) as tif:
             if tif.ome_metadata:
                 sizes, scale = [], []
                 for axis in "XYZ":
