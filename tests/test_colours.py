@@ -76,3 +76,20 @@ def test_presets_are_windows_with_colours_and_sources():
     assert preset("lung").window.select(np.array([-1000, -700, 0])).tolist() == [False, True, False]
     with pytest.raises(InputError, match="unknown preset 'liver'"):
         preset("liver")
+
+
+@pytest.mark.parametrize("name, content, message", [
+    ("latin.csv", "1,café,200,100,50\n".encode("latin-1"), r"is not UTF-8 text \(byte 0xe9 at 5\)"),
+    ("binary.csv", bytes(range(256)), "is not UTF-8 text"),
+    ("huge.csv", b"1,liver,200,100,50\n2," + b"x" * 200_000 + b",1,2,3\n", "is not a CSV table"),
+    ("inf.csv", b"1,liver,inf,100,50\n", "row 1"),
+    ("inf.ctbl", b"1 liver 1e400 100 50 255\n", "line 1"),
+    ("deep.json", b"[" * 100_000 + b"]" * 100_000, "nests its JSON too deep"),
+])
+def test_a_damaged_table_is_one_error(tmp_path, name, content, message):
+    """Each was an internal error (exit 1): a table not in UTF-8 (found by the fuzzing gate), a field beyond csv's
+    limit, a colour of inf, JSON nested beyond Python's recursion."""
+    (tmp_path / name).write_bytes(content)
+    with pytest.raises(InputError, match=message) as info:
+        read_colour_table(tmp_path / name)
+    assert info.value.parameter == "colours"
