@@ -89,13 +89,19 @@ def read_colour_table(path):
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
+    except OSError as exc:
         raise InputError(f"cannot read the colour table {path}: {exc.strerror or exc}", parameter="colours") from None
+    except UnicodeDecodeError as exc:
+        raise InputError(f"the colour table {path} is not UTF-8 text (byte {exc.object[exc.start]:#04x} at "
+                         f"{exc.start}); save it as UTF-8", parameter="colours") from None
     suffix = path.suffix.lower()
     if suffix == ".json":
         rows = _json_rows(path, text)
     elif suffix == ".csv":
-        rows = [(n, row) for n, row in enumerate(csv.reader(text.splitlines()), 1) if row and "".join(row).strip()]
+        try:
+            rows = [(n, row) for n, row in enumerate(csv.reader(text.splitlines()), 1) if row and "".join(row).strip()]
+        except csv.Error as exc:                    # a field beyond csv's limit, a NUL byte
+            raise InputError(f"{path} is not a CSV table: {exc}", parameter="colours") from None
         if rows and not rows[0][1][0].strip().lstrip("-").isdigit():
             rows = rows[1:]                                           # the header
         rows = [(n, row) for n, row in rows if not row[0].lstrip().startswith("#")]
@@ -130,6 +136,8 @@ def _json_rows(path, text):
         data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(f"{path} is not JSON: {exc.msg} at line {exc.lineno}", parameter="colours") from None
+    except RecursionError:
+        raise InputError(f"{path} nests its JSON too deep for a colour table", parameter="colours") from None
     if isinstance(data, dict):                    # {"3": {"name": ..., "colour": [...]}}
         data = [{"label": key, **(value if isinstance(value, dict) else {"colour": value})}
                 for key, value in data.items()]
@@ -149,7 +157,7 @@ def _entry(path, number, row):
     try:
         label = int(str(row[0]).strip())
         rgb = tuple(int(round(float(str(v).strip()))) for v in row[2:5])
-    except (ValueError, IndexError, TypeError):
+    except (ValueError, IndexError, TypeError, OverflowError):       # OverflowError: a colour of inf
         label, rgb = None, ()
     if label is None or len(rgb) != 3 or not 0 <= label <= 65535 or not all(0 <= v <= 255 for v in rgb):
         raise InputError(f"{where}: {row!r} is not 'label, name, r, g, b' with a label 0..65535 and colours "
