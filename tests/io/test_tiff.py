@@ -69,3 +69,18 @@ def test_a_cut_tiff_is_one_error_without_tifffiles_log(tmp_path, capfd):
     with pytest.raises(InputError, match="x.tif"):
         io.read_volume(tmp_path / "x.tif")
     assert capfd.readouterr().err == ""
+
+
+def test_a_first_page_without_its_width_is_bad_input(tmp_path):
+    """tifffile divides by the first page's size when it reads a shaped series: a page that lost its ImageWidth
+    tag (its code garbled) was a ZeroDivisionError, exit 1 (the fuzzing gate)."""
+    import tifffile
+
+    tifffile.imwrite(tmp_path / "v.tif", random_stack((5, 6, 7)))
+    whole = bytearray((tmp_path / "v.tif").read_bytes())
+    first_tag = 10                                  # the 8-byte header, the count of tags, then tag 256: ImageWidth
+    assert whole[first_tag:first_tag + 2] == (256).to_bytes(2, "little")
+    whole[first_tag] = 124
+    (tmp_path / "v.tif").write_bytes(bytes(whole))
+    with pytest.raises(InputError, match="v.tif: its page shapes or series description are damaged"):
+        io.read_volume(tmp_path / "v.tif")

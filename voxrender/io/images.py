@@ -18,7 +18,8 @@ def damaged_file_errors():
     headers and ``DecompressionBombError`` for absurd sizes; tifffile's ``TiffFileError`` (a ``ValueError``),
     ``struct.error`` and ``zlib.error`` for cut-off files, ``RuntimeError`` for pages that contradict each other and
     ``NotImplementedError`` for compressions it cannot decode.  (A garbled TIFF header can also trip tifffile's own
-    arithmetic, a ``ZeroDivisionError`` or ``TypeError``; those stay what they are, as any bug does.)
+    arithmetic, a ``ZeroDivisionError`` or ``TypeError``; those stay what they are, as any bug does, but for the
+    ``ZeroDivisionError`` of tifffile's series detection, which the TIFF reader meets first and names.)
     """
     from PIL.Image import DecompressionBombError
 

@@ -22,11 +22,16 @@ def read_tiff(path, progress):
         with quiet_log("tifffile"), tifffile.TiffFile(path) as tif:    # what imageio allocates: the first series
             series = tif.series[0]
             check_fits(series.shape, series.dtype, path)
-        with quiet_log("tifffile"):
-            values = iio.imread(path, index=None)
     except InputError:
         raise
-    except (*damaged_file_errors(), IndexError) as exc:       # IndexError: a file of no series
+    except (*damaged_file_errors(), IndexError) as exc:          # IndexError: a file of no series
+        raise InputError(f"cannot read TIFF {path}: {first_line(exc)}") from None
+    except ZeroDivisionError:        # tifffile's series detection (imageio's read below runs it too) on a zero size
+        raise InputError(f"cannot read TIFF {path}: its page shapes or series description are damaged") from None
+    try:
+        with quiet_log("tifffile"):
+            values = iio.imread(path, index=None)
+    except damaged_file_errors() as exc:
         raise InputError(f"cannot read TIFF {path}: {first_line(exc)}") from None
     if values.ndim == 2:
         raise InputError(f"{path} is a single 2-D image; give a multi-page TIFF or a folder of slices")
