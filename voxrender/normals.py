@@ -291,6 +291,8 @@ def _gradient_on_grid(grid, voxels, smooth, derive):
         edge = np.stack([x, y, z], axis=1)[~inner]
         gradient[~inner] = _gradient_of_samples(sample, edge, *_stencil(radius, smooth, derive))
     z, y, x = z[inner], y[inner], x[inner]
+    if not len(x):                  # rows shorter than the stencil (a volume one or two voxels wide in x)
+        return gradient
     windows = np.lib.stride_tricks.sliding_window_view(grid.ravel(), 2 * radius + 1)     # x - r .. x + r
     planes = [np.clip(z + d, 0, nz - 1) * ny for d in range(-radius, radius + 1)]
     rows = [np.clip(y + d, 0, ny - 1) for d in range(-radius, radius + 1)]
