@@ -1,5 +1,8 @@
 """voxrender.io.dicom: DICOM series, classic and enhanced."""
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from conftest import data_path
@@ -238,3 +241,25 @@ def test_slices_too_big_for_memory_are_refused_with_their_size(tmp_path, monkeyp
     monkeypatch.setattr(_shared, "free_memory", lambda: 1000)
     with pytest.raises(InputError, match=r"its 4x20x20 int16 voxels take 3.2 kB, more than the 1 kB of memory"):
         io.read_volume(tmp_path)
+
+
+def test_an_element_longer_than_its_file_is_bad_input_without_allocating_it(tmp_path):
+    """pydicom read an element by its length: a damaged one (here 2 GB, in a file of a few kB) was allocated
+    before the file was found short, and ran out of memory (exit 1; the fuzzing gate's big-endian enhanced file)."""
+    import pydicom
+
+    path = write_series(tmp_path, np.zeros((1, 4, 4)))[0]
+    ds = pydicom.dcmread(path)
+    ds.add_new(0x00091010, "UT", "a note")                          # a private element with a 4-byte length
+    ds.save_as(path)
+    whole = path.read_bytes()
+    at = whole.index(b"UT\0\0" + (6).to_bytes(4, "little"))
+    path.write_bytes(whole[:at + 4] + (0x7FFFFFF0).to_bytes(4, "little") + whole[at + 8:])
+    with pytest.raises(InputError, match="img0000.dcm"):
+        io.read_volume(tmp_path)
+    # and within 1 GB of address space, where reading 2 GB would have run out of memory
+    limited = ("import resource, sys; resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30)); "
+               "from voxrender import io; from voxrender.errors import InputError\n"
+               "try: io.read_volume(sys.argv[1])\nexcept InputError: print('bad input')")
+    done = subprocess.run([sys.executable, "-c", limited, str(tmp_path)], capture_output=True, text=True)
+    assert done.stdout.strip() == "bad input", done.stderr[-500:]

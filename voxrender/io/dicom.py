@@ -7,6 +7,8 @@ groups, RT dose grids by GridFrameOffsetVector.
 
 from __future__ import annotations
 
+import io
+import os
 import struct
 import warnings
 from collections.abc import Iterable
@@ -47,6 +49,21 @@ def _dicom_files(folder):
     return sorted((p for p in files if p.name.upper() != "DICOMDIR"), key=lambda p: natural_key(str(p)))
 
 
+class _BoundedFile(io.BufferedReader):
+    """A file whose reads ask for no more than it holds: pydicom reads an element by its length, and a damaged
+    length (or one read in the wrong byte order) would otherwise allocate that much before finding the file short.
+    """
+
+    def __init__(self, path):
+        super().__init__(io.FileIO(path, "rb"))
+        self.size = os.fstat(self.fileno()).st_size
+
+    def read(self, size=-1):
+        if size is not None and size > 0:
+            size = max(0, min(size, self.size - self.tell()))
+        return super().read(size)
+
+
 def _is_dicom(path):
     """A DICOM file, by its suffix or its magic bytes."""
     if path.suffix.lower() in SUFFIXES:
@@ -74,9 +91,11 @@ def read_dicom(folder, progress, series=None):
     for f in progress(files, len(files), "reading DICOM headers"):
         try:
             try:
-                ds = pydicom.dcmread(f, stop_before_pixels=True)
+                with _BoundedFile(f) as stream:
+                    ds = pydicom.dcmread(stream, stop_before_pixels=True)
             except InvalidDicomError:               # no file meta header: older files, read as a bare data set
-                ds = pydicom.dcmread(f, stop_before_pixels=True, force=True)
+                with _BoundedFile(f) as stream:
+                    ds = pydicom.dcmread(stream, stop_before_pixels=True, force=True)
             for keyword in HEADER_KEYWORDS:       # pydicom decodes a value when first asked: a damaged one fails here
                 ds.get(keyword)
         except damaged as exc:
@@ -189,7 +208,8 @@ def _dicom_pixels(path):
     damaged = damaged_file_errors()
     ds = None
     try:
-        ds = pydicom.dcmread(path, force=True)
+        with _BoundedFile(path) as stream:
+            ds = pydicom.dcmread(stream, force=True)
         _check_pixels_fit(ds, path)
         data = ds.pixel_array
         if str(getattr(ds, "PhotometricInterpretation", "")).startswith("YBR") and data.shape[-1] == 3:
