@@ -254,6 +254,8 @@ def _grey_normals(volume, mask, info, prepare):
     from .normals import surface_normals
 
     values = prep.crop(volume.values, prepare.crop)
+    if prep.non_finite_counts(values):      # NaN and inf are outside the object: its lowest value (a copy, rarely)
+        values = np.where(np.isfinite(values), values, prep.value_range(values)[0])
     if len(np.unique(np.asarray(values[::7, ::7, ::7]))) <= 2:
         return surface_normals(mask)
     # a mask grid point k along an axis lies k * voxel / spacing input voxels from the first

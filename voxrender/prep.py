@@ -142,25 +142,129 @@ def resample(values, spacing, voxel):
     return np.stack(list(_resample_slices(values, spacing, voxel)))
 
 
-def otsu_threshold(values):
+def otsu_threshold(values, padding=None):
     """Otsu's threshold of ``values`` (from a 1024-bin histogram, so large volumes stay fast).
 
+    NaN and inf voxels are left out, and so is ``padding``: the value a CT stores outside its scan circle
+    (see :func:`padding_value`), which would otherwise be the threshold's lower class.
+
     >>> float(otsu_threshold(np.array([0, 0, 0, 10, 10, 10]))) > 0
+    True
+    >>> float(otsu_threshold(np.array([-3024, -3024, -1000, -1000, 40, 40]), padding=-3024)) > -1000
     True
     """
     from skimage.filters import threshold_otsu
 
     values = np.asarray(values)
-    low, high = float(np.min(values)), float(np.max(values))
+    low, high, whole = _kept_range(values, padding)
+    besides = "" if padding is None else f" (besides the padding, {padding:g})"
+    if low is None:
+        raise InputError(f"every value is NaN or infinite{besides}, so there is nothing to threshold")
     if low == high:
-        raise InputError(f"every value is {low:g}, so there is nothing to threshold")
-    counts, edges = np.histogram(values, bins=1024, range=(low, high))
+        raise InputError(f"every value is {low:g}{besides}, so there is no threshold to find; give one at or below "
+                         f"{low:g} to keep every voxel")
+    if whole:                                   # every value counts: one histogram, no copy
+        counts, edges = np.histogram(values, bins=1024, range=(low, high))
+    else:
+        edges = np.histogram_bin_edges([], bins=1024, range=(low, high))
+        counts = sum(np.histogram(part, bins=edges)[0] for part in _kept_parts(values, padding))
     centres = (edges[:-1] + edges[1:]) / 2
     threshold = float(threshold_otsu(hist=(counts, centres)))
     # Between two separated classes every empty bin splits them equally well; take the middle of the gap.
     occupied = centres[counts > 0]
     below, above = occupied[occupied <= threshold], occupied[occupied > threshold]
     return float((below[-1] + above[0]) / 2) if len(below) and len(above) else threshold
+
+
+def value_range(values, padding=None):
+    """The lowest and highest of ``values`` leaving out NaN, inf and ``padding``; ``(None, None)`` when none is left.
+
+    >>> value_range(np.array([np.nan, -3024, -1000, 40, np.inf]), padding=-3024)
+    (-1000.0, 40.0)
+    """
+    return _kept_range(np.asarray(values), padding)[:2]
+
+
+def _kept_range(values, padding):
+    """:func:`value_range`, and whether it left nothing out (then the values are used as they are, uncopied)."""
+    if not values.size:
+        return None, None, False
+    low, high = float(np.min(values)), float(np.max(values))
+    if math.isfinite(low) and math.isfinite(high) and (padding is None or not low <= padding <= high):
+        return low, high, True
+    ranges = [(part.min(), part.max()) for part in _kept_parts(values, padding) if part.size]
+    if not ranges:
+        return None, None, False
+    return float(min(lo for lo, _ in ranges)), float(max(hi for _, hi in ranges)), False
+
+
+def _kept_parts(values, padding, voxels=1 << 24):
+    """The values of a few slices at a time without their NaN, inf and ``padding`` voxels (each part a copy, so
+    that no whole-volume one is made).
+    """
+    for block in _blocks(values, voxels):
+        keep = np.isfinite(block) if block.dtype.kind in "fc" else np.ones(block.shape, bool)
+        if padding is not None:
+            keep &= block != padding
+        yield block[keep]
+
+
+def non_finite_counts(values):
+    """How many voxels are NaN and how many infinite: ``{"nan": n, "inf": m}``, empty when there are none.
+
+    >>> non_finite_counts(np.array([1.0, np.nan, np.inf, -np.inf]))
+    {'nan': 1, 'inf': 2}
+    """
+    values = np.asarray(values)
+    if values.dtype.kind not in "fc" or _kept_range(values, None)[2]:
+        return {}
+    nan = sum(int(np.count_nonzero(np.isnan(part))) for part in _blocks(values))
+    inf = sum(int(np.count_nonzero(np.isinf(part))) for part in _blocks(values))
+    return {key: count for key, count in (("nan", nan), ("inf", inf)) if count}
+
+
+def padding_value(volume):
+    """The value a CT stores outside its scan circle, to leave out of thresholds found from the values; ``None``
+    when there is none.
+
+    The DICOM PixelPaddingValue when the reader found one (``meta["padding_value"]``, in the volume's units);
+    else, for a CT in HU, its lowest value when that is at or below -1024 HU, fills the corners of the slices
+    outside the scan circle and is rare inside it (air clipped at -1024 HU is everywhere around the patient).
+
+    >>> from voxrender.io import Volume
+    >>> yy, xx = np.mgrid[:32, :32]
+    >>> slice_ = np.where(np.hypot(yy - 15.5, xx - 15.5) < 16, -1000, -3024)
+    >>> padding_value(Volume(np.stack([slice_] * 4), meta={"units": "HU"}))
+    -3024.0
+    """
+    known = volume.meta.get("padding_value")
+    if known is not None:
+        return float(known)
+    if volume.meta.get("units") != "HU" or volume.values.ndim != 3 or min(volume.shape[1:]) < 8:
+        return None
+    nz, ny, nx = volume.shape
+    sample = np.asarray(volume.values[::max(1, nz // 8)])            # a few slices tell
+    low = float(np.min(sample))
+    if not low <= -1024:
+        return None
+    yy, xx = np.ogrid[:ny, :nx]
+    radius = np.hypot((yy - (ny - 1) / 2) / (ny / 2), (xx - (nx - 1) / 2) / (nx / 2))  # 1 on the inscribed circle
+    outside, inside = sample[:, radius > 1.02], sample[:, radius < 0.9]
+    fills_outside = outside.size and np.all(outside == low)
+    return low if fills_outside and np.mean(inside == low) < 0.05 else None
+
+
+def _range_text(values):
+    """How the finite values range, in words, for an error that says no voxel was chosen."""
+    low, high = value_range(values)
+    return "every value is NaN or infinite" if low is None else f"values range from {low:g} to {high:g}"
+
+
+def _blocks(values, voxels=1 << 24):
+    """``values`` a few slices at a time (views)."""
+    values = np.atleast_1d(values)
+    step = max(1, voxels // max(1, values[0].size))
+    return (values[start:start + step] for start in range(0, len(values), step))
 
 
 _crop = crop  # binarize's parameter of the same name hides the function
@@ -175,7 +279,8 @@ def binarize(volume, threshold=otsu_threshold, *, crop=None, voxel=None, resampl
     threshold : float, Window or callable
         Voxels with value ``>= threshold`` (stored units) belong to the object, or those inside a
         :class:`Window`; a callable is given the (cropped) values and returns the threshold, like the
-        default :func:`otsu_threshold`.
+        default :func:`otsu_threshold` (which also leaves out a CT's padding, :func:`padding_value`).
+        NaN and inf voxels never belong to the object.
     crop : tuple of 3 slices, optional
         The ``(z, y, x)`` subregion in input voxel indices (see :func:`crop`).
     voxel : float, optional
@@ -200,7 +305,9 @@ def binarize(volume, threshold=otsu_threshold, *, crop=None, voxel=None, resampl
     ((9, 4, 4), 28, 1.0)
     """
     values = _crop(volume.values, crop)
-    if callable(threshold):
+    if threshold is otsu_threshold:
+        threshold = otsu_threshold(values, padding_value(volume))
+    elif callable(threshold):
         threshold = threshold(values)
     window = threshold if isinstance(threshold, Window) else Window(float(threshold))
     mask, voxel, spacing = _windowed(values, volume.spacing, [window], voxel, resample, progress)
@@ -210,10 +317,9 @@ def binarize(volume, threshold=otsu_threshold, *, crop=None, voxel=None, resampl
 
         mask = remove_small_objects(mask, max_size=int(min_object) - 1, connectivity=3)
     if not mask.any():
-        low, high = np.min(values), np.max(values)
         what = f"window {window}" if isinstance(threshold, Window) else f"threshold {window.lo:g}"
-        raise InputError(f"{what} leaves no object voxel: values range from {low:g} to "
-                         f"{high:g}; choose a threshold in that range", parameter="threshold")
+        raise InputError(f"{what} leaves no object voxel: {_range_text(values)}; choose a threshold in that range",
+                         parameter="threshold")
     return mask, {"threshold": str(threshold) if isinstance(threshold, Window) else window.lo, "voxel": voxel,
                   "spacing": spacing}
 
@@ -239,8 +345,8 @@ def classify(volume, windows, *, crop=None, voxel=None, resample=True, progress=
     values = _crop(volume.values, crop)
     labels, voxel, spacing = _windowed(values, volume.spacing, windows, voxel, resample, progress)
     if not labels.any():
-        raise InputError(f"no voxel lies in {', '.join(str(w) for w in windows)}: values range from "
-                         f"{np.min(values):g} to {np.max(values):g}", parameter="preset")
+        raise InputError(f"no voxel lies in {', '.join(str(w) for w in windows)}: {_range_text(values)}",
+                         parameter="preset")
     return labels, {"threshold": ", ".join(str(w) for w in windows), "voxel": voxel, "spacing": spacing}
 
 
@@ -252,10 +358,14 @@ def _windowed(values, spacing, windows, voxel, resample, progress):
     voxel, out_shape = _grid(values.shape, spacing, voxel, resample)
     planes = _resample_slices(values, spacing, voxel, progress) if out_shape is not None else values
     labels = np.empty(out_shape or values.shape, np.uint8)
+    # NaN is in no window, but inf is in an open one: a float volume holding either is cleaned slice by slice
+    every_value_finite = values.dtype.kind not in "fc" or _kept_range(values, None)[2]
     for layer, plane in zip(labels, planes, strict=True):
         windows[0].select(plane, out=layer.view(bool))     # writes 0 and 1
         for number, window in enumerate(windows[1:], 2):
             layer[window.select(plane)] = number
+        if not every_value_finite:                      # and what resampling spread them to
+            layer[~np.isfinite(plane)] = 0
     return labels, voxel, (voxel,) * 3 if out_shape is not None else tuple(float(s) for s in spacing)
 
 
