@@ -234,9 +234,17 @@ def test_inputs_are_never_written(tmp_path, stacks):
     work = items([stacks / "ball.npy"], batch.parse_views(["left"]))
     work[0].patterns = batch.Patterns(depth="in/{name}.npy")
     before = (stacks / "ball.npy").read_bytes()
-    with pytest.raises(InputError, match="over an input"):
+    with pytest.raises(InputError, match="over or inside the input .*ball.npy"):
         batch.run_batch(work, tmp_path, jobs=1)
     assert (stacks / "ball.npy").read_bytes() == before
+    folder = tmp_path / "slices"               # a folder input: nothing is written inside it, not even the cache
+    folder.mkdir()
+    work = items([folder], batch.parse_views(["left"]))
+    with pytest.raises(InputError, match="over or inside the input"):
+        batch.run_batch(work, folder / "out", jobs=1)
+    with pytest.raises(InputError, match="the cache .* would be written inside the input"):
+        batch.run_batch(work, tmp_path / "out", jobs=1, cache_dir=folder / "cache")
+    assert list(folder.iterdir()) == []
 
 
 def test_a_manifest_output_outside_the_folder_is_refused_in_one_line(tmp_path, stacks):

@@ -691,12 +691,16 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
     Raises
     ------
     InputError
-        Before anything is rendered: an output outside ``out_dir`` or over an input, a pattern that is not
-        valid, a folder that cannot be written, or one that another batch is using.  After: the disk was full
-        (the message says how many pictures are there, and whether the summary fitted).
+        Before anything is rendered: an output outside ``out_dir`` or over an input, a cache inside an input, a
+        pattern that is not valid, a folder that cannot be written, or one that another batch is using.  After:
+        the disk was full (the message says how many pictures are there, and whether the summary fitted).
     """
     out_dir = Path(out_dir)
     _check_patterns(items, out_dir)
+    held = cache_dir is not None and _input_holding(cache_dir, items)
+    if held:
+        raise InputError(f"the cache {cache_dir} would be written inside the input {held}; give a folder apart "
+                         "from the inputs")
     _make_folder(out_dir)
     output.check_folder_writable(out_dir)
     with _folder_lock(out_dir):
@@ -844,7 +848,6 @@ def _check_patterns(items, out_dir):
     parameter of the command.
     """
     folder = os.path.realpath(out_dir)
-    inputs = {os.path.realpath(path) for item in items for path in _item_files(item)}
     seen = {}
     for item in items:
         for index, view in enumerate(item.views):
@@ -864,9 +867,10 @@ def _check_patterns(items, out_dir):
                     through = "" if os.path.abspath(path) == resolved else f" (a symbolic link leads to {resolved})"
                     raise InputError(f"{given} puts {path} outside the batch's folder {out_dir}{through}; give a "
                                      "pattern relative to the folder that stays inside it", parameter=parameter)
-                if any(resolved == source or resolved.startswith(source + os.sep) for source in inputs):
-                    raise InputError(f"{given} would write {path} over an input; choose names apart from the "
-                                     "inputs", parameter=parameter)
+                source = _input_holding(resolved, items)
+                if source:
+                    raise InputError(f"{given} would write {path} over or inside the input {source}; choose names "
+                                     "apart from the inputs", parameter=parameter)
                 if path.suffix.lower() != ending:
                     raise InputError(f"{given} must end in {ending}", parameter=parameter)
                 if path in seen:
@@ -874,10 +878,16 @@ def _check_patterns(items, out_dir):
                 seen[path] = True
 
 
-def _item_files(item):
-    """The paths an item reads: its input and its label map (never written)."""
-    labels = item.prepare.labels
-    return [item.input] + ([labels.source] if labels is not None and labels.source is not None else [])
+def _input_holding(path, items):
+    """The input (or label map) of ``items`` that ``path`` is, or is inside; ``None`` when it is none of them."""
+    resolved = os.path.realpath(path)
+    for item in items:
+        labels = item.prepare.labels
+        for source in [item.input] + ([labels.source] if labels is not None and labels.source is not None else []):
+            real = os.path.realpath(source)
+            if resolved == real or resolved.startswith(real + os.sep):
+                return source
+    return None
 
 
 def _animate(item, out_dir, kind, fps, rows):
