@@ -117,23 +117,29 @@ def test_a_killed_dask_worker_fails_its_rows_and_the_others_finish(tmp_path, sta
 
 
 def test_a_killed_batch_is_finished_by_the_next_run(tmp_path, stacks):
-    """``voxrender batch`` run as a process and killed (SIGKILL) once its first pictures are there: every picture
-    it left is whole, the lock it left does not stop the rerun, and the rerun makes the rest, clearing the
-    temporaries a kill in the middle of a write leaves.
+    """``voxrender batch`` run as a process (with two workers) and killed (SIGKILL) once its first pictures are
+    there: its workers end too, every picture it left is whole, the lock it left does not stop the rerun, and the
+    rerun makes the rest, clearing the temporaries a kill in the middle of a write leaves.
     """
     out = tmp_path / "out"
     command = [sys.executable, "-m", "voxrender.cli", "batch", str(stacks / "ball.npy"), "--threshold", "500",
-               "--turntable", "40", "--size", "96", "--jobs", "1", "-o", str(out)]
+               "--turntable", "40", "--size", "96", "--jobs", "2", "-o", str(out)]
     running = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    workers = []
     try:
         deadline = time.monotonic() + 120
         while not pictures(out) and time.monotonic() < deadline and running.poll() is None:
             time.sleep(0.005)
+        workers = children(running.pid)
     finally:
         running.send_signal(signal.SIGKILL)
         running.wait()
     if running.returncode != -signal.SIGKILL:
         pytest.skip("the batch ended before it could be killed")
+    deadline = time.monotonic() + 10
+    while any(alive(pid) for pid in workers) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert workers and not any(alive(pid) for pid in workers)              # no orphan goes on writing
     (out / "ball" / f".turn039.png{output.PARTIAL}dead1234.png").write_bytes(b"\x89PNG half")   # as a kill leaves
     left = {p.name for p in pictures(out)}
     assert 0 < len(left) < 40 and not (out / "summary.csv").exists() and (out / batch.LOCK_NAME).exists()
@@ -145,6 +151,25 @@ def test_a_killed_batch_is_finished_by_the_next_run(tmp_path, stacks):
     assert len(rows) == 40 and {r["status"] for r in rows} <= {"ok", "done earlier"}
     assert {r["view"] + ".png" for r in rows if r["status"] == "done earlier"} == left
     assert partials(out) == []
+
+
+def children(pid):
+    """The processes whose parent is ``pid``."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        with contextlib.suppress(OSError):
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+            if int(fields[1]) == pid:
+                found.append(int(stat.parent.name))
+    return found
+
+
+def alive(pid):
+    """Whether process ``pid`` is running (not ended, nor a zombie waiting to be reaped)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
 
 
 def _check_full_disk(out, result):

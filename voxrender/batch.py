@@ -498,12 +498,15 @@ class _Processes:
     died = (_WorkerDied,)
 
     def __init__(self, jobs):
-        from concurrent.futures import ProcessPoolExecutor
-
         self.jobs = jobs
         self.marks = Path(tempfile.mkdtemp(prefix="voxrender-running-"))
         self.tasks = {}
-        self.pool = ProcessPoolExecutor(max_workers=jobs)
+        self.pool = self._new_pool()
+
+    def _new_pool(self):
+        from concurrent.futures import ProcessPoolExecutor
+
+        return ProcessPoolExecutor(max_workers=self.jobs, initializer=_end_with, initargs=(os.getpid(),))
 
     def submit(self, fn, *args):
         from concurrent.futures import Future
@@ -543,11 +546,10 @@ class _Processes:
 
     def _recover(self):
         """After a worker died: a new pool for the tasks that were waiting, each running one again alone."""
-        from concurrent.futures import ProcessPoolExecutor
         from concurrent.futures.process import BrokenProcessPool
 
         self.pool.shutdown(wait=True)       # once it is down, every task it broke says so
-        self.pool = ProcessPoolExecutor(max_workers=self.jobs)
+        self.pool = self._new_pool()
         broken = [(future, task) for future, task in self.tasks.items()
                   if not future.done() and isinstance(task.running.exception(), BrokenProcessPool)]
         for _, task in broken:
@@ -568,6 +570,20 @@ def _why_died(exc):
     if isinstance(exc, _WorkerDied):
         return str(exc)
     return "its worker process died, on as many Dask workers as Dask allows (their logs say why)"
+
+
+def _end_with(parent):
+    """In a worker: end it once ``parent``, its batch, has ended.  A batch killed outright cannot end its workers,
+    which would otherwise wait for work for ever, or go on writing beside the batch that is run next.
+    """
+    import threading
+
+    def watch():
+        while os.getppid() == parent:
+            time.sleep(0.5)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="voxrender-end-with-batch", daemon=True).start()
 
 
 def _marked(mark, fn, *args):
