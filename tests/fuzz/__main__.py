@@ -33,7 +33,9 @@ def main(argv=None):
                 bad.append((number, name, outcome, tail))
                 print(f"{outcome}: case {number}: {name}: {tail[-1] if tail else ''}", flush=True)
             if done % 100 == 0:
-                print(f"... {done} cases, {time.perf_counter() - started:.0f} s", file=sys.stderr, flush=True)
+                so_far = ", ".join(f"{count} {outcome}" for outcome, count in outcomes.most_common())
+                print(f"... {done} cases in {time.perf_counter() - started:.0f} s: {so_far}", file=sys.stderr,
+                      flush=True)
     print(f"\n{sum(outcomes.values())} cases of seed {args.seed} in {time.perf_counter() - started:.0f} s:")
     for outcome, count in outcomes.most_common():
         print(f"  {count:6d}  {outcome}")
