@@ -65,7 +65,7 @@ def test_remove_partials_clears_what_a_killed_writer_left(tmp_path):
     left.write_bytes(b"half")
     (tmp_path / "a" / "x.png").write_bytes(b"whole")
     (tmp_path / ".hidden.png").write_bytes(b"the user's")
-    assert output.remove_partials(tmp_path) == 1
+    assert output.remove_partials(tmp_path / "a") == 1
     assert sorted(p.name for p in tmp_path.rglob("*")) == [".hidden.png", "a", "x.png"]
 
 

@@ -76,12 +76,12 @@ def atomic_output(path):
 
 
 def remove_partials(folder):
-    """Remove the temporaries that processes killed while writing left in ``folder`` and below; the number removed.
+    """Remove the temporaries that processes killed while writing left in ``folder``; the number removed.
 
     Only for a folder no running process writes in (a batch holds its folder's lock).
     """
     removed = 0
-    for leftover in Path(folder).rglob(f".*{PARTIAL}*"):
+    for leftover in Path(folder).glob(f".*{PARTIAL}*"):
         if leftover.is_file():
             leftover.unlink()
             removed += 1
