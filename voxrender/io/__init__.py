@@ -25,8 +25,11 @@ Every reader also returns, when its header says it, the volume's *direction* (se
 Readers stream: the volume array is allocated once and filled slice by slice.
 
 A reader turns only the errors its library raises for a damaged file into :class:`~voxrender.errors.InputError`;
-anything else (a bug, a ``MemoryError``) goes on as it is.  Adding a format is one module with its reading function
-and its ``READER`` record, one line in ``READERS`` and one test file (see ``docs/design.md``).
+anything else (a bug, a ``MemoryError``) goes on as it is.  Before it allocates, it compares the sizes its header
+promises with what the file holds and with the free memory, and inflates compressed voxels no further than
+promised (``_shared.check_holds``, ``check_fits``, ``inflate``): a hostile header is bad input, with both sizes.
+Adding a format is one module with its reading function and its ``READER`` record, one line in ``READERS`` and
+one test file (see ``docs/design.md``).
 """
 
 from __future__ import annotations
