@@ -391,6 +391,8 @@ def dicom_mutation(rng, files, enhanced):
         if vr is not None:
             tag = tag_for_keyword(keyword)
             ds[tag] = DataElement(tag, vr, value)
+        elif keyword == "PixelPaddingValue":         # US or SS as the pixels are: pydicom cannot tell unaided
+            ds.add_new(tag_for_keyword(keyword), "SS", value)
         elif keyword == "TransferSyntaxUID":
             ds.file_meta.TransferSyntaxUID = value
         elif keyword == "PixelData":
