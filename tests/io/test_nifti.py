@@ -190,3 +190,19 @@ def test_a_cut_4d_file_is_bad_input(tmp_path, name):
     for frame in range(3):
         with pytest.raises(InputError, match=name):
             io.read_volume(tmp_path / name, frame=frame)
+
+
+def test_only_voxels_read_into_memory_must_fit_there(tmp_path, monkeypatch):
+    """Unscaled voxels of a .nii are memory-mapped (a crop then reads only its part); scaled ones are read."""
+    import nibabel
+
+    from voxrender.io import _shared
+
+    nibabel.save(nibabel.Nifti1Image(np.zeros((20, 20, 20), np.int16), np.eye(4)), str(tmp_path / "mapped.nii"))
+    scaled = nibabel.Nifti1Image(np.zeros((20, 20, 20), np.int16), np.eye(4))
+    scaled.header.set_slope_inter(2, 1)
+    nibabel.save(scaled, str(tmp_path / "scaled.nii"))
+    monkeypatch.setattr(_shared, "free_memory", lambda: 10_000)
+    assert io.read_volume(tmp_path / "mapped.nii").shape == (20, 20, 20)
+    with pytest.raises(InputError, match="more than the 10 kB of memory free here"):
+        io.read_volume(tmp_path / "scaled.nii")

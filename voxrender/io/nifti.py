@@ -114,12 +114,15 @@ def _check_a_volume(path, image):
 
 def _check_sizes(path, image, shape):
     """Refuse, before reading them, voxels that the file does not hold or this machine cannot: an uncompressed
-    file must hold what its header promises, and the volume (one frame of a 4-D file) must fit in memory.
+    file must hold what its header promises, and a volume that nibabel reads into memory (one frame of a 4-D
+    file; compressed or scaled voxels: unscaled ones of a ``.nii`` are memory-mapped) must fit there.
     """
     dtype, offset = image.header.get_data_dtype(), int(image.dataobj.offset)   # where nibabel reads the voxels
     compressed = str(path).lower().endswith(".gz")
     if not compressed:
         check_holds(path, promised_bytes(shape, dtype), path.stat().st_size - offset)
+        if image.dataobj.slope == 1 and image.dataobj.inter == 0:
+            return
 
     def held(limit):                                         # what the .nii.gz inflates to, past its header
         with open(path, "rb") as f:
