@@ -191,3 +191,12 @@ def test_a_nrrd_that_is_not_a_spatial_volume_is_named(tmp_path, fields, message)
 def test_a_header_without_its_required_fields(tmp_path):
     with pytest.raises(InputError, match="its NRRD header lacks encoding, sizes"):
         io.read_volume(_nrrd(tmp_path / "v.nrrd", {"type": "uint8", "dimension": 3}, bytes(8)))
+
+
+@pytest.mark.parametrize("origin", ["(1,2)", "(1,2,nan)", "(1,2,3,4)"])
+def test_a_space_origin_that_is_not_three_numbers_is_bad_input(tmp_path, origin):
+    """A two-number origin was a matmul shape error, exit 1 (the fuzzing gate)."""
+    fields = {**INT16, "space": "left-posterior-superior", "sizes": "4 4 4",
+              "space directions": "(1,0,0) (0,1,0) (0,0,1)", "space origin": origin, "encoding": "raw"}
+    with pytest.raises(InputError, match="its space origin .* is not three numbers"):
+        io.read_volume(_nrrd(tmp_path / "v.nrrd", fields, bytes(128)))

@@ -92,7 +92,11 @@ def read_nrrd(path, progress, frame=None):
             direction = to_lps @ (matrix / np.array(spacing))
             meta["orientation_from"] = f"NRRD space {header.get('space')} and space directions"
             if header.get("space origin") is not None:
-                meta["origin"] = (to_lps @ np.asarray(header["space origin"], dtype=float)).tolist()
+                origin = np.asarray(header["space origin"], dtype=float)
+                if origin.shape != (3,) or not np.all(np.isfinite(origin)):
+                    raise InputError(f"{path}: its space origin {origin.tolist()} is not three numbers; the header "
+                                     "is damaged")
+                meta["origin"] = (to_lps @ origin).tolist()
         else:
             direction = None
             meta["orientation_from"] = f"unknown: NRRD space {header.get('space', 'not given')!s} is not anatomical"
