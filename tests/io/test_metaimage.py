@@ -119,3 +119,13 @@ def test_a_volume_too_big_for_memory_is_refused_with_its_size(tmp_path, monkeypa
     path = _mha(tmp_path / "v.mha", "20 20 20", zlib.compress(payload) if compressed else payload, compressed)
     with pytest.raises(InputError, match=r"its 20x20x20 int16 voxels take 16 kB, more than the 1 kB of memory free"):
         io.read_volume(path)
+
+
+@pytest.mark.parametrize("offset", ["1 2", "1 2 nan", "a b c"])
+def test_an_offset_that_is_not_three_numbers_is_left_out(tmp_path, offset):
+    """Two numbers did not fit the affine's three (a broadcast error, exit 1)."""
+    header = ("NDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\nTransformMatrix = 1 0 0 0 1 0 0 0 1\n"
+              f"Offset = {offset}\nElementDataFile = LOCAL\n")
+    (tmp_path / "v.mha").write_bytes(header.encode() + bytes(8))
+    volume = io.read_volume(tmp_path / "v.mha")
+    assert "origin" not in volume.meta and volume.meta["affine"][0][3] == 0

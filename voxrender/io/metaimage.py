@@ -105,9 +105,11 @@ def read_metaimage(path, progress):
     for key in ("Offset", "Origin", "Position"):
         if key in header:
             try:
-                meta["origin"] = [float(v) for v in header[key].split()][:3]
+                origin = [float(v) for v in header[key].split()][:3]
             except ValueError:
-                pass
+                origin = []
+            if len(origin) == 3 and all(np.isfinite(origin)):      # else it is left out, as one unsaid
+                meta["origin"] = origin
             break
     meta["source"] = str(path)
     return Volume(values.astype(dtype.newbyteorder("="), copy=False), check_spacing(spacing, path), meta, direction)
