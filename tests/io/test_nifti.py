@@ -206,3 +206,15 @@ def test_only_voxels_read_into_memory_must_fit_there(tmp_path, monkeypatch):
     assert io.read_volume(tmp_path / "mapped.nii").shape == (20, 20, 20)
     with pytest.raises(InputError, match="more than the 10 kB of memory free here"):
         io.read_volume(tmp_path / "scaled.nii")
+
+
+def test_sizes_that_are_not_positive_are_bad_input(tmp_path):
+    """dim (7, 0, -16512): nibabel gave an empty array of another shape, then "axes don't match array" (exit 1)."""
+    import nibabel
+
+    nibabel.save(nibabel.Nifti1Image(np.zeros((7, 6, 5), np.int16), np.eye(4)), str(tmp_path / "v.nii"))
+    whole = bytearray((tmp_path / "v.nii").read_bytes())
+    whole[42:48] = np.array([7, 0, -16512], "<i2").tobytes()        # dim[1:4]
+    (tmp_path / "v.nii").write_bytes(bytes(whole))
+    with pytest.raises(InputError, match=r"its sizes \(dim\) \[7, 0, -16512\] must be positive"):
+        io.read_volume(tmp_path / "v.nii")

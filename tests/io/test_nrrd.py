@@ -200,3 +200,10 @@ def test_a_space_origin_that_is_not_three_numbers_is_bad_input(tmp_path, origin)
               "space directions": "(1,0,0) (0,1,0) (0,0,1)", "space origin": origin, "encoding": "raw"}
     with pytest.raises(InputError, match="its space origin .* is not three numbers"):
         io.read_volume(_nrrd(tmp_path / "v.nrrd", fields, bytes(128)))
+
+
+def test_an_empty_vector_is_bad_input(tmp_path):
+    """pynrrd's parser indexes an empty vector's first character (IndexError, exit 1)."""
+    fields = {**INT16, "space": "left-posterior-superior", "sizes": "4 4 4", "space origin": "", "encoding": "raw"}
+    with pytest.raises(InputError, match="cannot read .* as NRRD"):
+        io.read_volume(_nrrd(tmp_path / "v.nrrd", fields, bytes(128)))

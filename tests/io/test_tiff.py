@@ -84,3 +84,17 @@ def test_a_first_page_without_its_width_is_bad_input(tmp_path):
     (tmp_path / "v.tif").write_bytes(bytes(whole))
     with pytest.raises(InputError, match="v.tif: its page shapes or series description are damaged"):
         io.read_volume(tmp_path / "v.tif")
+
+
+def test_a_first_page_of_no_known_type_is_bad_input(tmp_path):
+    """151 bits per sample: tifffile asserts a page type when it reads a shaped series (AssertionError, exit 1)."""
+    import tifffile
+
+    tifffile.imwrite(tmp_path / "v.tif", random_stack((5, 6, 7)))
+    whole = bytearray((tmp_path / "v.tif").read_bytes())
+    bits = 42                                       # the value of the third tag, 258: BitsPerSample
+    assert whole[bits - 8:bits - 6] == (258).to_bytes(2, "little") and whole[bits] == 16
+    whole[bits] = 151
+    (tmp_path / "v.tif").write_bytes(bytes(whole))
+    with pytest.raises(InputError, match="v.tif"):
+        io.read_volume(tmp_path / "v.tif")

@@ -50,6 +50,8 @@ def read_nifti(path, progress, frame=None):
     except damaged as exc:
         raise InputError(f"cannot read {path} as NIfTI: {first_line(exc)}") from None
     _check_a_volume(path, image)
+    if min(shape, default=0) < 1:
+        raise InputError(f"{path}: its sizes (dim) {list(shape)} must be positive; the header is damaged")
     with nibabel.openers.ImageOpener(str(path)) as opener:     # as stored: loading mends a zero pixdim to 1
         stored = type(header).from_fileobj(opener, check=False)
     pixdim = [float(v) for v in stored["pixdim"][1:4]]

@@ -51,7 +51,8 @@ def read_nrrd(path, progress, frame=None):
         raise
     except FileNotFoundError as exc:
         raise InputError(f"{path}: its data file {exc.filename or ''} is missing") from None
-    except (nrrd.NRRDError, OSError, EOFError, ValueError, KeyError, TypeError, zlib.error, StopIteration) as exc:
+    except (nrrd.NRRDError, OSError, EOFError, ValueError, KeyError, TypeError, IndexError, zlib.error,
+            StopIteration) as exc:                  # IndexError: pynrrd parsing an empty vector
         raise InputError(f"cannot read {path} as NRRD: {first_line(exc)}") from None
     directions = _space_directions(path, header, values.ndim)
     if values.ndim == 4:

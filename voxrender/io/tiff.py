@@ -26,7 +26,8 @@ def read_tiff(path, progress):
         raise
     except (*damaged_file_errors(), IndexError) as exc:          # IndexError: a file of no series
         raise InputError(f"cannot read TIFF {path}: {first_line(exc)}") from None
-    except ZeroDivisionError:        # tifffile's series detection (imageio's read below runs it too) on a zero size
+    except (ZeroDivisionError, AssertionError):      # tifffile's series detection (imageio's read below runs it
+        # too) dividing by a page of size zero, or asserting that its pages agree
         raise InputError(f"cannot read TIFF {path}: its page shapes or series description are damaged") from None
     try:
         with quiet_log("tifffile"):
