@@ -160,3 +160,19 @@ def test_running_out_of_memory_is_not_a_damaged_file(tmp_path, monkeypatch):
         io.read_volume(path)
     result = info(path, [])
     assert result.exit_code == 1 and result.stderr.startswith("internal error: out of memory")
+
+
+def test_voxels_become_real_numbers_the_renderers_take(tmp_path):
+    """A boolean TIFF ended in numpy's 'boolean subtract' (exit 1), found by fuzzing the readers; complex NIfTI
+    values in 'a must be an array of real numbers' (exit 1); 16-bit floats become 32-bit ones."""
+    import nibabel
+    import tifffile
+
+    tifffile.imwrite(tmp_path / "mask.tif", np.ones((3, 4, 5), bool))
+    tifffile.imwrite(tmp_path / "half.tif", np.full((3, 4, 5), 0.5, np.float16))
+    nibabel.save(nibabel.Nifti1Image(np.ones((5, 4, 3), np.complex64), np.eye(4)), str(tmp_path / "complex.nii"))
+    assert io.read_volume(tmp_path / "mask.tif").values.dtype == np.uint8
+    half = io.read_volume(tmp_path / "half.tif").values
+    assert half.dtype == np.float32 and np.all(half == 0.5)
+    with pytest.raises(InputError, match="complex.nii holds complex64 values; voxrender needs real numbers"):
+        io.read_volume(tmp_path / "complex.nii")

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from ._shared import Reader, Volume, check_fits, check_holds, first_line, promised_bytes
+from ._shared import Reader, Volume, check_holds, first_line, promised_bytes
 
 
 def read_npy(path, progress):
-    """Read a 3-D numeric ``.npy`` array (booleans become 0 and 1)."""
+    """Read a 3-D numeric ``.npy`` array (booleans become 0 and 1 in :func:`~voxrender.io.read_volume`)."""
     from tokenize import TokenError
 
     damaged = (ValueError, OSError, EOFError, TokenError)        # a garbled header can fail numpy's tokenizer
@@ -25,9 +25,6 @@ def read_npy(path, progress):
     if values.ndim != 3 or values.dtype.kind not in "uifb":
         raise InputError(f"{path} holds a {values.ndim}-D {values.dtype} array; voxrender needs a 3-D "
                          "numeric array [z, y, x]")
-    if values.dtype.kind == "b":
-        check_fits(values.shape, np.uint8, path)
-        values = values.astype(np.uint8)
     return Volume(values, (1.0, 1.0, 1.0), {"spacing_from": "default (.npy carries no spacing)"})
 
 
