@@ -419,3 +419,41 @@ def test_sheet_command(tmp_path, cube_folder):
     assert_bad_input(run("sheet", cube_folder, "--depth-out", tmp_path / "d.npy", "-o", tmp_path / "t.png"),
                      "--depth-out")
     assert not (tmp_path / "t.png").exists()
+
+
+def test_info_leaves_out_nan_and_inf_and_counts_them(tmp_path):
+    """Was: the value range [nan, nan], and '--threshold: nan must be a finite number' with no --threshold given."""
+    import nibabel as nib
+
+    values = np.zeros((16, 16, 16), np.float32)
+    values[4:12, 4:12, 4:12] = 100
+    values[0, 0, :3], values[1, 1, 1] = np.nan, np.inf
+    nib.save(nib.Nifti1Image(values, np.eye(4)), tmp_path / "nan.nii")
+    result = run("info", tmp_path / "nan.nii", "--json")
+    assert result.exit_code == 0 and not result.stderr, result.output
+    summary = json.loads(result.stdout)
+    assert summary["value_range"] == [0.0, 100.0] and summary["nan_voxels"] == 3 and summary["inf_voxels"] == 1
+    assert 0 < summary["suggested_threshold_otsu"] < 100 and summary["object_voxels"] == 8 ** 3
+    assert all(np.isfinite(summary["percentiles_1_5_25_50_75_95_99"]))
+    assert "nan voxels: 3" in run("info", tmp_path / "nan.nii").stdout
+    nib.save(nib.Nifti1Image(np.full((4, 4, 4), np.nan, np.float32), np.eye(4)), tmp_path / "all-nan.nii")
+    assert_bad_input(run("info", tmp_path / "all-nan.nii"), "every voxel is NaN or infinite")
+
+
+def test_info_on_a_ct_padded_outside_its_scan_circle(tmp_path):
+    """The padding (-3024 HU outside the circle) is left out of the suggestions, and the CT presets suggested."""
+    yy, xx = np.mgrid[:64, :64] - 31.5
+    radius = np.hypot(yy, xx)
+    plane = np.where(radius < 32, -1000, -3024)
+    plane = np.where(radius < 16, 40, plane)
+    ct = np.stack([plane] * 6).astype(np.int16)
+    write_series(tmp_path / "ct", ct + 1024, spacing=(1.0, 1.0, 1.0), intercept=-1024)
+    summary = json.loads(run("info", tmp_path / "ct", "--json").stdout)
+    assert summary["units"] == "HU" and summary["value_range"] == [-3024.0, 40.0]
+    assert summary["padding_value"] == -3024 and summary["padding_voxels"] == int((ct == -3024).sum())
+    assert -1000 < summary["suggested_threshold_otsu"] < 40 and summary["object_voxels"] == int((ct == 40).sum())
+    assert summary["suggested_presets"] == {"skin": "-300:", "bone": "300:"}
+    plain = json.loads(run("info", tmp_path / "ct", "--json", "--format", "dicom").stdout)
+    assert plain == summary
+    write_slices(np.full((4, 8, 8), 40, np.uint16), tmp_path / "pngs")
+    assert "suggested_presets" not in json.loads(run("info", tmp_path / "pngs", "--json").stdout)

@@ -141,3 +141,20 @@ def test_axis_aligned_views_have_exact_matrices():
         for beta in (0, 90, 180):
             matrix = rotation_matrix(alpha, beta, 90)
             assert set(np.unique(matrix).tolist()) <= {-1.0, 0.0, 1.0}
+
+
+def test_a_box_thinner_than_a_pixel_is_framed_on_a_pixel_centre():
+    """A slab one voxel thick seen edge-on at under a pixel per voxel: its middle on a pixel centre, so a ray meets
+    it; a box a pixel wide or more keeps its middle at the picture's middle, as before.
+    """
+    from voxrender.view import frame_together
+
+    shape, box = (50, 600, 1), ((0, 49), (0, 599), (0, 0))
+    for size in ((512, 512), (511, 511), (300, 200)):
+        for view in (View(size=size).fitted(shape, box), View(size=size).fitted(shape, box, fit="volume"),
+                     *frame_together([View(size=size), View(0, 90, size=size)], shape, box)):
+            (x0, x1), _ = view.extent(shape, box)
+            columns, _ = view.pixel_index(np.array([x0, x1]), 0.0)
+            assert np.ceil(columns[0]) <= np.floor(columns[1]), (size, view)        # a column of pixel centres
+    cube = ((0, 9), (0, 9), (0, 4))
+    assert View(size=(100, 100)).fitted((10, 10, 10), cube).centre == (-2.5, 0.0)

@@ -10,17 +10,21 @@ through these two functions, so the same options give the same picture from ever
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from . import shade
-from ._render import DEFAULT_METHOD, Clip, DepthImage, method_record, render
+from ._render import DEFAULT_METHOD, Clip, DepthImage, framing_box, method_record, render
 from .errors import InputError
 from .output_kinds import OUTPUTS, fields_per_output
 from .shade import HEADLIGHT, SHADINGS, light_direction
-from .view import View
+from .view import PRESETS, View
+
+# The views that see a slab thin along an axis face-on.
+FACE_ON = {"x": ("left", "right"), "y": ("anterior", "posterior"), "z": ("inferior", "superior")}
 
 
 @dataclass(frozen=True)
@@ -176,6 +180,8 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
     image = render(segments, view, options.method, progress, options.supersample, options.clip, options.fit,
                    tree, **options.method_options)
     seconds = {"render": image.seconds}
+    if not image.coverage.any():
+        warnings.warn(_why_empty(segments, image.view, options), stacklevel=2)
     colour, labels, table = options.colour, None, None
     if segments.labels is not None:
         started = time.perf_counter()
@@ -206,6 +212,28 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
 
         result.rgb = draw_legend(rgb, [(caption(v), v["colour"]) for v in result.visible_labels()])
     return result
+
+
+def _why_empty(segments, view, options):
+    """Why a picture shows none of the object, and the way out, in words."""
+    named = next((f"the {name} view" for name, angles in PRESETS.items()
+                  if angles == (view.alpha, view.beta, view.gamma)), None)
+    named = named or f"the view at alpha {view.alpha:g}, beta {view.beta:g}, gamma {view.gamma:g}"
+    box = framing_box(segments, options.clip)
+    (x0, x1), (y0, y1) = view.extent(segments.shape, box)
+    height, width = view.size
+    (left, right), (top, bottom) = view.pixel_centres(np.array([0, width - 1]), np.array([0, height - 1]))
+    if x1 < left or x0 > right or y1 < top or y0 > bottom:
+        return f"the object falls outside the picture from {named} at {view.scale:g} pixels per voxel; " \
+               "choose a smaller scale, or leave it to be fitted"
+    if min(x1 - x0, y1 - y0) * view.scale < 1:
+        sizes = [high - low + 1 for low, high in box]
+        axis = "zyx"[int(np.argmin(sizes))]
+        thin = min(sizes)
+        return (f"the object is {thin} voxel{'s' * (thin > 1)} thick along {axis} and edge-on from {named}: "
+                f"thinner than a pixel at {view.scale:g} pixels per voxel, so no ray meets it; see it face-on "
+                f"from the {' or '.join(FACE_ON[axis])} view, or at a larger scale")
+    return f"the picture shows none of the object from {named}"
 
 
 def label_table(segments, given=None):

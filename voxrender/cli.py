@@ -322,9 +322,7 @@ def render_command(input_path, output_path, **options):
     result = picture(loaded.segments, render_options.view(*angles), render_options, progress,
                      loaded.tree_for(render_options.method))
     result.seconds = {**loaded.seconds, **result.seconds}
-    write_outputs(result, outputs, about(loaded.segments))
-    if not result.image.coverage.any():
-        click.echo("warning: the object falls outside the picture; try a smaller --scale", err=True)
+    write_outputs(result, outputs, about(loaded.segments))     # an empty picture was warned of, with the reason
 
 
 @main.command("encode")
@@ -390,15 +388,28 @@ def info_command(input_path, as_json, **options):
 
 def _describe(path, volume, prepare):
     values = prep.crop(volume.values, prepare.crop)
-    low, high = float(np.min(values)), float(np.max(values))
-    suggested = prep.otsu_threshold(values) if low < high else low
-    percentiles = np.percentile(values[::max(1, values.shape[0] // 64)], [1, 5, 25, 50, 75, 95, 99])
+    low, high = prep.value_range(values)                 # NaN and inf voxels left out, and counted
+    if low is None:
+        raise InputError(f"{path}: every voxel is NaN or infinite, so there is nothing to describe")
+    padding = prep.padding_value(volume)
+    lowest, highest = prep.value_range(values, padding)
+    suggested = prep.otsu_threshold(values, padding) if lowest is not None and lowest < highest else low
+    sample = np.asarray(values[::max(1, values.shape[0] // 64)])
+    if sample.dtype.kind in "fc":                 # its finite values (or all slices', when the sample has none)
+        finite = np.isfinite(sample)
+        sample = sample[finite] if finite.any() else np.asarray(values)[np.isfinite(values)]
+    percentiles = np.percentile(sample, [1, 5, 25, 50, 75, 95, 99])
     summary = {"input": str(path), "format": volume.meta.get("format"),
                "dimensions_xyz": list(volume.shape[::-1]), "spacing_mm": list(volume.spacing),
                "spacing_from": volume.meta.get("spacing_from"), "dtype": str(volume.values.dtype),
                "units": volume.meta.get("units", "stored values"), "value_range": [low, high],
+               **{f"{kind}_voxels": count for kind, count in prep.non_finite_counts(values).items()},
                "percentiles_1_5_25_50_75_95_99": [round(float(p), 2) for p in percentiles],
+               **({"padding_value": padding, "padding_voxels": int(np.count_nonzero(np.asarray(values) == padding))}
+                  if padding is not None else {}),
                "suggested_threshold_otsu": round(suggested, 2)}
+    if volume.meta.get("units") == "HU":                  # the tissue windows of a CT
+        summary["suggested_presets"] = {name: str(colours.PRESETS[name].window) for name in ("skin", "bone")}
     for key in ("modality", "series", "description", "sorted_by", "orientation", "orientation_from", "affine",
                 "reoriented"):
         if volume.meta.get(key):

@@ -278,11 +278,30 @@ class View:
         if self.scale is not None:
             return self
         if fit == "volume" or box is None:
-            return replace(self, scale=fit_scale(shape, self.size), centre=(0.0, 0.0))
+            return replace(self, scale=fit_scale(shape, self.size), centre=(0.0, 0.0))._on_a_pixel(shape, box)
         (x0, x1), (y0, y1) = self.extent(shape, box)
         height, width = self.size
         scale = min(width / ((x1 - x0) * (1 + 2 * margin)), height / ((y1 - y0) * (1 + 2 * margin)))
-        return replace(self, scale=float(scale), centre=((x0 + x1) / 2, (y0 + y1) / 2))
+        return replace(self, scale=float(scale), centre=((x0 + x1) / 2, (y0 + y1) / 2))._on_a_pixel(shape, box)
+
+    def _on_a_pixel(self, shape, box):
+        """The view moved by less than a pixel, where the box is thinner than a pixel as it sees it (a slab one voxel
+        thick, edge-on), so that the box's middle falls on a pixel centre and a ray meets the slab: between two
+        pixel centres it would leave the picture blank.  Boxes a pixel wide or more are left where they are.
+
+        >>> view = View(size=(100, 100), scale=0.5)._on_a_pixel((64, 64, 1), ((0, 63), (0, 63), (0, 0)))
+        >>> view.centre                         # one voxel across X', half a pixel: moved by half a pixel
+        (-1.0, 0.0)
+        """
+        if box is None:
+            return self
+        middle = []
+        for (low, high), pixels, centre in zip(self.extent(shape, box), self.size[::-1], self.centre, strict=True):
+            if (high - low) * self.scale >= 1:
+                middle.append(centre)
+            else:           # the pixel centre nearest the picture's middle, at the box's middle
+                middle.append((low + high) / 2 - (pixels // 2 + 0.5 - pixels / 2) / self.scale)
+        return replace(self, centre=tuple(middle))
 
     def extent(self, shape, box):
         """``((X'min, X'max), (Y'min, Y'max))``: the image-space extent of a bounding box's cubes in this view."""
@@ -312,4 +331,4 @@ def frame_together(views, shape, box):
     """
     fitted = [v.fitted(shape, box) for v in views]
     scale = min(v.scale for v in fitted)
-    return [replace(v, scale=scale) for v in fitted]
+    return [replace(v, scale=scale)._on_a_pixel(shape, box) for v in fitted]
