@@ -231,6 +231,24 @@ def test_a_padded_ct_shows_the_patient(tmp_path):
     assert -1000 < report["object"]["threshold"] < 40
 
 
+def test_the_dicom_pixel_padding_value_is_left_out(tmp_path):
+    """PixelPaddingValue (stored units; the reader rescales it) marks the padding wherever it lies."""
+    import pydicom
+
+    ct = padded_ct(padding=-1000)                   # air all round: the rule finds no padding
+    ct[:, :, :10] = -3024                           # a band of padding the tag alone tells
+    write_series(tmp_path / "ct", ct + 1024, spacing=(1.0, 1.0, 1.0), intercept=-1024)
+    assert prep.padding_value(read_volume(tmp_path / "ct")) is None
+    for path in (tmp_path / "ct").iterdir():
+        ds = pydicom.dcmread(path)
+        ds.add_new(0x00280120, "SS", -3024 + 1024)
+        ds.save_as(path)
+    volume = read_volume(tmp_path / "ct")
+    assert volume.meta["padding_value"] == prep.padding_value(volume) == -3024
+    _, info = prep.binarize(volume)
+    assert -1000 < info["threshold"] < 40
+
+
 def test_vhf_head_keeps_its_otsu_threshold():
     """The real head has no padding (air clipped at -1024 HU fills its corners and much of its circle too)."""
     volume = read_volume(data_path("vhf_head"))
