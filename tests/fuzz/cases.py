@@ -172,7 +172,7 @@ def nifti_header_mutation(rng, path):
     name = rng.choice(sorted(NIFTI_FIELDS))
     index, value = NIFTI_FIELDS[name](rng)
     if name == "dim" and rng.random() < 0.3:      # a CIFTI-2 like matrix: dims 1 1 1 1 N M, intent 3006
-        header["dim"] = [6, 1, 1, 1, 1, 20, 22 * 18]
+        header["dim"] = [6, 1, 1, 1, 1, 20, 22 * 18, 1]
         header["intent_code"] = 3006
         description = "dim=CIFTI-2 matrix 1x1x1x1x20x396"
     else:
@@ -370,6 +370,7 @@ def dicom_mutation(rng, files, enhanced):
     from pydicom import config
     from pydicom.datadict import tag_for_keyword
     from pydicom.dataelem import DataElement
+    from pydicom.uid import JPEGBaseline8Bit
 
     config.settings.reading_validation_mode = config.IGNORE
     config.settings.writing_validation_mode = config.IGNORE
@@ -395,6 +396,10 @@ def dicom_mutation(rng, files, enhanced):
             ds.add_new(tag_for_keyword(keyword), "SS", value)
         elif keyword == "TransferSyntaxUID":
             ds.file_meta.TransferSyntaxUID = value
+            if value == JPEGBaseline8Bit:           # a compressed syntax's pixels are fragments: raw ones here
+                from pydicom.encaps import encapsulate
+
+                ds.PixelData = encapsulate([ds.PixelData])
         elif keyword == "PixelData":
             pixels = ds.PixelData
             if value == "deleted":
