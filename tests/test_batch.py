@@ -1,5 +1,6 @@
 import csv
 import json
+from pathlib import Path
 
 import imageio.v3 as iio
 import numpy as np
@@ -261,3 +262,14 @@ def test_a_manifest_output_outside_the_folder_is_refused_in_one_line(tmp_path, s
     result = CliRunner().invoke(main, ["batch", "--manifest", str(tmp_path / "m.csv"), "-o", str(tmp_path / "out")])
     assert result.exit_code == 2 and "the manifest's output pattern '{nope}.png' is not valid" in result.stderr
     assert "--pattern" not in result.stderr
+
+
+def test_a_manifest_row_naming_no_file_fails_its_row_as_bad_input(tmp_path, stacks):
+    (tmp_path / "m.csv").write_text(f"input\n{stacks / 'ball.npy'}\nmissing.npy\n*.npy\n")
+    result = CliRunner().invoke(main, ["batch", "--manifest", str(tmp_path / "m.csv"), "--threshold", "500",
+                                       "--size", "24", "-o", str(tmp_path / "out"), "--jobs", "1"])
+    rows = {Path(row["input"]).name: row for row in read_summary(tmp_path / "out" / "summary.csv")}
+    assert result.exit_code == 2 and "internal error" not in result.output + result.stderr
+    assert rows["ball.npy"]["status"] == "ok"
+    for name in ("missing.npy", "*.npy"):
+        assert rows[name]["status"] == "failed" and "no such file or folder" in rows[name]["error"]

@@ -127,3 +127,9 @@ def test_a_label_map_is_resampled_to_the_nearest_label():
     labels, info = label_map(Volume(values, (1, 1, 3)))
     assert labels[:, 0, 0].tolist() == [1, 1, 2, 2, 2, 3, 3] and info["labels"] == [1, 2, 3]
     assert labels.dtype == np.uint16 and info["spacing"] == (1.0, 1.0, 1.0)
+
+
+def test_a_spacing_whose_resampled_grid_overflows_is_bad_input():
+    with pytest.raises(InputError, match="check the spacing") as caught:
+        prep.binarize(Volume(np.zeros((4, 4, 4), np.int16), (1e308, 1.0, 1.0)), 1)
+    assert caught.value.parameter == "voxel"

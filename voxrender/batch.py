@@ -282,8 +282,12 @@ def cache_key(path, read, prepare):
     """Hex digest of the input's content (every file's name and bytes) and the options that shape the object."""
     digest = hashlib.sha256()
     path = Path(path)
+    if not path.exists():            # a manifest's row may name anything
+        raise InputError(f"no such file or folder: {path}", parameter="inputs")
     files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
     if prepare.labels is not None and prepare.labels.source is not None:      # the paired label map shapes it too
+        if not Path(prepare.labels.source).exists():
+            raise InputError(f"no such file or folder: {prepare.labels.source}", parameter="labels_from")
         files.append(Path(prepare.labels.source))
     if path.suffix.lower() == ".mhd" and path.is_file():
         files += [p for p in path.parent.iterdir() if p.suffix.lower() in (".raw", ".zraw")]

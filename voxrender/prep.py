@@ -376,11 +376,12 @@ def _grid(shape, spacing, voxel, resample):
     voxel = float(voxel or min(spacing))
     if not resample or all(math.isclose(s, voxel) for s in spacing):
         return voxel, None
-    out_shape = resampled_shape(shape, spacing, voxel)
-    if math.prod(out_shape) > 4e9:
-        raise InputError(f"resampling to {voxel:g} mm voxels would give {out_shape[::-1]} voxels; "
-                         "choose a larger voxel or crop a subregion", parameter="voxel")
-    return voxel, out_shape
+    counts = [(n - 1) * s / voxel + 1 for n, s in zip(shape, spacing[::-1], strict=True)]  # floats: no overflow
+    if not all(math.isfinite(c) for c in counts) or math.prod(counts) > 4e9:
+        raise InputError(f"the voxel spacing {tuple(spacing)} mm, resampled to cubic {voxel:g} mm voxels, would give "
+                         f"{' x '.join(f'{c:.3g}' for c in counts[::-1])} voxels; check the spacing, or choose a "
+                         "larger voxel or crop a subregion", parameter="voxel")
+    return voxel, resampled_shape(shape, spacing, voxel)
 
 
 @dataclass(frozen=True)
