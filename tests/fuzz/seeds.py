@@ -91,7 +91,7 @@ def nrrd_4d(case, values, spacing=SPACING, direction=None):
 
     path = case / INPUT / "x.nrrd"
     matrix = np.diag(spacing).T
-    frames = np.stack([values, np.nanmax(values) - values])
+    frames = np.stack([values, np.nanmax(values) - values], axis=-1)      # the list axis the fastest
     header = {"space": "left-posterior-superior", "kinds": ["list", "domain", "domain", "domain"],
               "space directions": np.vstack([np.full(3, np.nan), matrix]), "space origin": [0.0, 0.0, 0.0]}
     nrrd.write(str(path), frames, header, index_order="C")
