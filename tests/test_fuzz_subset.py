@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 from fuzz import cases
-from fuzz.run import GOOD, KEPT, replay, run_case
+from fuzz.run import GOOD, KEPT, replay, run_case, run_seed
 
 SUBSET = range(len(cases.FORMATS))          # case n is of format n modulo their number: one of each
 # Subset cases that misbehave while their fix is in another engineer's hands: {case number: reason}.
@@ -35,6 +35,27 @@ def test_subset_case_ends_in_a_picture_or_one_error_line(subset_outcomes, number
     assert outcome in GOOD, f"case {number} of seed 0 ({name}): {outcome}: {tail}"
 
 
+# Valid seeds that voxrender refuses while the fix is in another engineer's hands: {format: reason}.
+SEED_PENDING = {"nrrd-4d": "readers engineer: since c60e50c a 4-D NRRD whose first axis is of kind 'list' (as 3D "
+                           "Slicer writes them) is refused even with --frame (the kinds are checked by their 4-D "
+                           "index after the frame is taken)"}
+
+
+@pytest.fixture(scope="module")
+def seed_outcomes():
+    with ProcessPoolExecutor(2) as pool:
+        return dict(zip(sorted(cases.FORMATS), pool.map(run_seed, sorted(cases.FORMATS)), strict=True))
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param(n, marks=[pytest.mark.xfail(strict=True, reason=SEED_PENDING[n])] if n in SEED_PENDING else [])
+    for n in sorted(cases.FORMATS)])
+def test_every_seed_file_renders_a_picture(seed_outcomes, name):
+    """The gate damages valid files: each format's undamaged seed must make a picture."""
+    outcome, tail, _ = seed_outcomes[name]
+    assert outcome == "picture", f"{name}: {outcome}: {tail}"
+
+
 def test_cases_are_reproducible(tmp_path):
     """Case n of seed s is always the same file."""
     first, second = tmp_path / "first", tmp_path / "second"
@@ -50,11 +71,18 @@ def test_cases_are_reproducible(tmp_path):
 KEPT_CASES = sorted(p.parent for p in KEPT.glob("*/*/case.json"))
 
 
+@pytest.fixture(scope="module")
+def kept_outcomes():
+    """The kept cases' outcomes, replayed two at a time."""
+    with ProcessPoolExecutor(2) as pool:
+        return dict(zip(KEPT_CASES, pool.map(replay, KEPT_CASES), strict=True))
+
+
 @pytest.mark.parametrize("kept", [
     pytest.param(path, id=path.name, marks=[pytest.mark.xfail(strict=True, reason=PENDING[path.name])]
                  if path.name in PENDING else []) for path in KEPT_CASES])
-def test_kept_case_ends_in_a_picture_or_one_error_line(kept):
-    outcome, tail, command = replay(kept)
+def test_kept_case_ends_in_a_picture_or_one_error_line(kept_outcomes, kept):
+    outcome, tail, _ = kept_outcomes[kept]
     assert outcome in GOOD, f"{json.loads((kept / 'case.json').read_text())['name']}: {outcome}: {tail}"
 
 

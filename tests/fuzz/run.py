@@ -170,6 +170,23 @@ def run_case(seed, number, keep=KEPT):
         return number, made.name, made.format, outcome, tail
 
 
+def run_seed(name):
+    """Write the valid seed file of format ``name``, undamaged, and run its render (or batch); its outcome."""
+    with tempfile.TemporaryDirectory(prefix="fuzz-seed-") as scratch:
+        case = Path(scratch)
+        (case / cases.seeds.INPUT).mkdir()
+        values, spacing, direction = cases.seeds.phantom_stored()
+        seed = cases.FORMATS[name].write(case, values, spacing, direction)
+        return run_in(case, cases.commands_for(_NoExtras(), seed))
+
+
+class _NoExtras:
+    """A stand-in for the case's random choices that adds no threshold and no ``info``."""
+
+    def random(self):
+        return 1.0
+
+
 def replay(kept):
     """Run a kept case (a folder with its ``case.json`` and ``input/``) again, in a scratch copy; its outcome."""
     record = json.loads((kept / "case.json").read_text())
