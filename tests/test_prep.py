@@ -133,3 +133,13 @@ def test_a_spacing_whose_resampled_grid_overflows_is_bad_input():
     with pytest.raises(InputError, match="check the spacing") as caught:
         prep.binarize(Volume(np.zeros((4, 4, 4), np.int16), (1e308, 1.0, 1.0)), 1)
     assert caught.value.parameter == "voxel"
+
+
+def test_a_read_only_float_volume_is_resampled():
+    """A float32 frame of a 4-D NIfTI is a read-only map of the file; scikit-image's warp refused it (found by the
+    fuzzing gate)."""
+    values = np.zeros((4, 6, 6), np.float32)
+    values[1:3, 2:4, 2:4] = 100
+    values.flags.writeable = False
+    mask, info = prep.binarize(Volume(values, (1.0, 0.5, 2.0)), 50)
+    assert mask.any() and info["voxel"] == 0.5

@@ -116,9 +116,9 @@ def _resample_slices(values, spacing, voxel, progress=None):
             if len(cache) > 1:
                 cache.pop(min(cache))
             data = np.asarray(values[i], dtype=np.float32)
-            if not inplane_same:
-                data = warp(data, to_input, output_shape=(out_y, out_x), order=1, mode="edge",
-                            preserve_range=True).astype(np.float32)
+            if not inplane_same:           # a float32 slice may be a read-only map of the file: warp takes no such
+                data = warp(np.require(data, requirements="W"), to_input, output_shape=(out_y, out_x), order=1,
+                            mode="edge", preserve_range=True).astype(np.float32)
             cache[i] = data
         return cache[i]
 
