@@ -207,3 +207,16 @@ def test_an_empty_vector_is_bad_input(tmp_path):
     fields = {**INT16, "space": "left-posterior-superior", "sizes": "4 4 4", "space origin": "", "encoding": "raw"}
     with pytest.raises(InputError, match="cannot read .* as NRRD"):
         io.read_volume(_nrrd(tmp_path / "v.nrrd", fields, bytes(128)))
+
+
+def test_nrrd_4d_with_its_list_axis_first_takes_a_frame(tmp_path):
+    """3D Slicer writes a sequence's frames along the fastest axis, of kind 'list' (its kinds are the header's,
+    so the three kept axes are checked by their place in the header, not after the frame is taken)."""
+    import nrrd
+
+    data = np.arange(3 * 4 * 5 * 2, dtype=np.int16).reshape(3, 4, 5, 2)       # [z, y, x, t]
+    nrrd.write(str(tmp_path / "four.nrrd"), data, {"space": "left-posterior-superior", "kinds":
+               ["list", "domain", "domain", "domain"], "space directions": [[np.nan] * 3, [1, 0, 0], [0, 1, 0],
+                                                                             [0, 0, 2]]}, index_order="C")
+    volume = io.read_volume(tmp_path / "four.nrrd", frame=1)
+    assert np.array_equal(volume.values, data[..., 1]) and volume.spacing == (1.0, 1.0, 2.0)

@@ -55,6 +55,7 @@ def read_nrrd(path, progress, frame=None):
             StopIteration) as exc:                  # IndexError: pynrrd parsing an empty vector
         raise InputError(f"cannot read {path} as NRRD: {first_line(exc)}") from None
     directions = _space_directions(path, header, values.ndim)
+    axes = [0, 1, 2]                                        # the header's axes (fastest first) of the volume read
     if values.ndim == 4:
         # the non-spatial axis: 'none' in space directions
         spatial = [d is not None for d in (directions if directions is not None else [None] * 4)]
@@ -64,15 +65,16 @@ def read_nrrd(path, progress, frame=None):
         frame = check_frame(path, frame, values.shape[3 - extra])
         values = np.take(values, frame, axis=3 - extra)
         directions = [d for d, s in zip(directions, spatial, strict=True) if s]
+        axes = [k for k in range(4) if k != extra]
     else:
         check_frame(path, frame)
     if values.ndim != 3:
         raise InputError(f"{path} holds a {values.ndim}-D array (a table or a picture), not a 3-D spatial volume")
     if directions is not None and any(d is None for d in directions):
-        axis = [d is None for d in directions].index(True)
+        axis = axes[[d is None for d in directions].index(True)]
         raise InputError(f"{path}: its axis {axis} has no space direction ({_kind(header, axis)}), so it holds "
                          "values of another kind along it, not a 3-D spatial volume")
-    non_spatial = [k for k in range(3) if _kind(header, k) not in SPATIAL_KINDS]
+    non_spatial = [k for k in axes if _kind(header, k) not in SPATIAL_KINDS]
     if non_spatial:
         raise InputError(f"{path}: its axis {non_spatial[0]} is of kind {_kind(header, non_spatial[0])!r}, so it "
                          "is not a 3-D spatial volume")
