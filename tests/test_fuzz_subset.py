@@ -15,9 +15,7 @@ SUBSET_PENDING = {}
 
 # Kept cases whose fix is in another engineer's hands: {folder name: reason}.  Remove an entry when its fix lands
 # (the strict xfail then fails, to say so).
-PENDING = {"0-1980-nifti-4d__nan_voxels": "prep/info engineer (or the readers): a float frame of a 4-D NIfTI is a "
-                                        "read-only view, and prep's resampling (skimage warp) refuses it: "
-                                        "'buffer source array is read-only'"}
+PENDING = {}
 
 
 @pytest.fixture(scope="module")
@@ -37,9 +35,7 @@ def test_subset_case_ends_in_a_picture_or_one_error_line(subset_outcomes, number
 
 
 # Valid seeds that voxrender refuses while the fix is in another engineer's hands: {format: reason}.
-SEED_PENDING = {"nrrd-4d": "readers engineer: since c60e50c a 4-D NRRD whose first axis is of kind 'list' (as 3D "
-                           "Slicer writes them) is refused even with --frame (the kinds are checked by their 4-D "
-                           "index after the frame is taken)"}
+SEED_PENDING = {}
 
 
 @pytest.fixture(scope="module")
