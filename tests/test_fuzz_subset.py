@@ -15,9 +15,7 @@ SUBSET_PENDING = {}
 
 # Kept cases whose fix is in another engineer's hands: {folder name: reason}.  Remove an entry when its fix lands
 # (the strict xfail then fails, to say so).
-PENDING = {"2-46-vxo__vxs_drop_array=_octree_first_child_":
-           "the .vxo reader (octree.py's from_sections; no owner in issue 21's split): a .vxo whose header lacks one "
-           "of its octree sections ends in a KeyError (exit 1), not in 'a damaged .vxo file'"}
+PENDING = {}
 
 
 @pytest.fixture(scope="module")

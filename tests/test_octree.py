@@ -168,3 +168,20 @@ def test_parents_and_white_adjacency():
             cols = matrix.indices
             assert set(zip(white[rows].tolist(), names[cols].tolist(), strict=True)) == \
                 set(zip(source[keep].tolist(), target[keep].tolist(), strict=True))
+
+
+def test_a_vxo_with_a_missing_or_mismatched_octree_section_is_bad_input(tmp_path):
+    """Found by the fuzzing gate: a .vxo whose header lacks an octree section ended in a KeyError (exit 1)."""
+    from voxrender.pipeline import load_segments
+    from voxrender.segments import encode, save
+
+    segments = encode(samples.sphere(12) > samples.SAMPLE_THRESHOLD)
+    arrays = octree.sections(octree.build_from_segments(segments))
+    save(segments, tmp_path / "whole.vxo", arrays)
+    assert load_segments(tmp_path / "whole.vxo").has_octree
+    save(segments, tmp_path / "lacking.vxo", {k: v for k, v in arrays.items() if k != "octree_first_child"})
+    with pytest.raises(InputError, match="damaged .vxo file: its section octree_first_child is missing"):
+        load_segments(tmp_path / "lacking.vxo")
+    save(segments, tmp_path / "short.vxo", {**arrays, "octree_level": arrays["octree_level"][:-1]})
+    with pytest.raises(InputError, match="do not fit together"):
+        load_segments(tmp_path / "short.vxo")

@@ -471,12 +471,24 @@ def sections(tree):
     return arrays
 
 
-def from_sections(arrays, shape):
+_SECTIONS = ("octree_n", "octree_color", "octree_level", "octree_origin", "octree_first_child", "octree_linear",
+             *(f"octree_{kind}{direction}_{part}" for kind in ("white", "black") for direction in range(6)
+               for part in ("indptr", "indices")))
+
+
+def from_sections(arrays, shape, source="the file"):
     """The :class:`RegionOctree` kept in a ``.vxs`` file's ``arrays`` (see :func:`sections`), or ``None`` when it
-    holds none; ``shape`` is the object's grid.
+    holds none; ``shape`` is the object's grid, ``source`` names the file in the error a damaged one gets.
     """
-    if "octree_color" not in arrays:
+    if not any(name in arrays for name in _SECTIONS):
         return None
-    n = int(arrays["octree_n"][0])
+    missing = [name for name in _SECTIONS if name not in arrays]
+    nodes = len(arrays["octree_color"]) if "octree_color" in arrays else -1
+    n = int(arrays["octree_n"][0]) if "octree_n" in arrays and len(arrays["octree_n"]) == 1 else -1
+    if (missing or not 0 <= n <= 31 or 2 ** n < max(shape) or arrays["octree_origin"].size != 3 * nodes
+            or not len(arrays["octree_level"]) == len(arrays["octree_first_child"]) == nodes
+            or arrays["octree_linear"].size % max(n, 1)):
+        what = f"its section {missing[0]} is missing" if missing else "its octree sections do not fit together"
+        raise InputError(f"{source} is a damaged .vxo file: {what}; encode the object again")
     return RegionOctree(n, tuple(shape), arrays["octree_color"], arrays["octree_level"],
                         arrays["octree_origin"].reshape(-1, 3), arrays["octree_first_child"], stored=arrays)

@@ -143,7 +143,7 @@ def load_segments(path, read=None, prepare=None, progress=None):
         header, arrays = segments.read_sections(path)
         encoded = segments.from_sections(header, arrays, path)
         return Encoded(encoded, {"load": time.perf_counter() - started, "prepare": 0.0},
-                       from_sections(arrays, encoded.shape))
+                       from_sections(arrays, encoded.shape, path))
     volume = read.read(path, progress)
     loaded = time.perf_counter()
     encoded = encode_volume(volume, prepare, read, progress, source=path)
