@@ -127,7 +127,9 @@ def read_dicom(folder, progress, series=None):
         pixel = _pixel_spacing(chosen[0][1], chosen[0][0])
     except InputError:
         raise
-    except (ValueError, TypeError, NotImplementedError) as exc:   # a value its VR does not allow (IS "1A", DS "?.0")
+    # a value its VR does not allow (IS "1A", DS "?.0"); a sequence pydicom decodes only when first read, garbled
+    # or cut (OSError "no tag to read", EOFError, struct.error)
+    except (ValueError, TypeError, NotImplementedError, OSError, EOFError, struct.error) as exc:
         raise InputError(f"{folder}: a DICOM header value is invalid ({first_line(exc)}); the files are damaged") \
             from None
     first = chosen[0][1]
