@@ -153,6 +153,8 @@ def tiff(case, values, spacing=SPACING, direction=None, **options):
         values = values.astype(np.uint16)
     options = {"imagej": True, "resolution": (1 / spacing[0], 1 / spacing[1]),
                "metadata": {"spacing": spacing[2], "unit": "mm"}, **options}
+    if options["imagej"] and values.dtype not in (np.uint8, np.uint16, np.float32):   # ImageJ stores no others
+        values = values.astype(np.float32)
     tifffile.imwrite(path, values, **options)
     return Seed(f"{INPUT}/{path.name}", files=[path])
 
