@@ -59,8 +59,8 @@ class _BoundedFile(io.BufferedReader):
         self.size = os.fstat(self.fileno()).st_size
 
     def read(self, size=-1):
-        if size is not None and size > 0:
-            size = max(0, min(size, self.size - self.tell()))
+        if size is not None and size > self.size:      # the file's size bounds it: no tell() on every small read
+            size = self.size
         return super().read(size)
 
 
