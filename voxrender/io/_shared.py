@@ -351,6 +351,29 @@ def inflate(stream, codec, promised, source):
     return data
 
 
+def read_voxels(stream, shape, dtype, source, codec=None, skip=0, exact=False):
+    """The voxels ``[z, y, x]`` of ``shape`` and ``dtype`` in the rest of the binary file ``stream``: raw
+    (``codec=None``), or inflated by ``codec`` (``"gzip"``, ``"bzip2"`` or ``"zlib"``) past its first ``skip``
+    inflated bytes.  Before anything is allocated, what the header promises is compared with what the file holds
+    (``exact``: no more either, for raw voxels) and with the memory free.
+
+    Examples
+    --------
+    >>> import io
+    >>> read_voxels(io.BytesIO(zlib.compress(bytes(8))), (2, 2, 2), np.uint8, "v.mha", "zlib").shape
+    (2, 2, 2)
+    """
+    nbytes = promised_bytes(shape, dtype)
+    if codec is None:
+        check_holds(source, nbytes, os.fstat(stream.fileno()).st_size - stream.tell(), exact=exact)
+        check_fits(shape, dtype, source)
+        return np.fromfile(stream, dtype, count=math.prod(shape)).reshape(shape)
+    start = stream.tell()
+    check_fits(shape, dtype, source, held=lambda limit: inflated_size(stream, codec, skip + limit) - skip)
+    stream.seek(start)
+    return np.frombuffer(inflate(stream, codec, skip + nbytes, source), dtype, offset=skip).reshape(shape)
+
+
 def inflated_size(stream, codec, limit):
     """How many bytes the rest of ``stream`` inflates to, counted without keeping them, up to ``limit`` + 1."""
     size = 0

@@ -5,8 +5,6 @@ MetaImage has no library here: the header is ``Key = Value`` lines up to ``Eleme
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from .. import orient
@@ -14,16 +12,13 @@ from ..errors import InputError
 from ._shared import (
     Reader,
     Volume,
-    check_fits,
-    check_holds,
     check_spacing,
     files_in,
     first_line,
     folder_of_volumes,
-    inflate,
-    inflated_size,
     listed,
     promised_bytes,
+    read_voxels,
 )
 
 SUFFIXES = (".mhd", ".mha")
@@ -91,15 +86,7 @@ def read_metaimage(path, progress):
         offset += header_size
     with open(source, "rb") as f:
         f.seek(offset)
-        if compressed:
-            check_fits(dims[::-1], dtype, source, held=lambda limit: inflated_size(f, "zlib", limit))
-            f.seek(offset)
-            values = np.frombuffer(inflate(f, "zlib", nbytes, source), dtype)
-        else:
-            check_holds(source, nbytes, source.stat().st_size - offset)
-            check_fits(dims[::-1], dtype, source)
-            values = np.fromfile(f, dtype, count=math.prod(dims))
-    values = values.reshape(dims[::-1])
+        values = read_voxels(f, dims[::-1], dtype, source, "zlib" if compressed else None)
     direction, orientation_from = _metaimage_direction(header, path)
     meta = {"spacing_from": "MetaImage header", "orientation_from": orientation_from}
     for key in ("Offset", "Origin", "Position"):

@@ -7,7 +7,6 @@ colours.  A folder of NRRD files is recognised, and refused with what it holds.
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 import re
 import zlib
@@ -21,13 +20,11 @@ from ._shared import (
     Volume,
     check_fits,
     check_frame,
-    check_holds,
     check_spacing,
     first_line,
     folder_of_volumes,
-    inflate,
-    inflated_size,
     promised_bytes,
+    read_voxels,
     volume_files,
 )
 
@@ -148,23 +145,11 @@ def _read_voxels(path, f, header):
     with open(source, "rb") if data_file is not None else contextlib.nullcontext(f) as data:
         for _ in range(line_skip):
             data.readline()
-        nbytes = promised_bytes(sizes, dtype)
-        if encoding == "raw":
+        if encoding == "raw":                                # byte skip -1: the voxels end the file
             held = os.fstat(data.fileno()).st_size - data.tell()
-            if byte_skip == -1:
-                byte_skip = held - nbytes
-            check_holds(source, nbytes, held - max(byte_skip, 0), exact=True)
-            check_fits(sizes, dtype, source)
-            data.seek(byte_skip, os.SEEK_CUR)
-            return np.fromfile(data, dtype, count=math.prod(sizes)).reshape(sizes[::-1])
-        start = data.tell()
-        def held(limit):
-            return inflated_size(data, encoding, byte_skip + limit) - byte_skip
-
-        check_fits(sizes, dtype, source, held)
-        data.seek(start)
-        voxels = inflate(data, encoding, byte_skip + nbytes, source)
-        return np.frombuffer(voxels, dtype, offset=byte_skip).reshape(sizes[::-1])
+            data.seek(max(held - promised_bytes(sizes, dtype), 0) if byte_skip == -1 else byte_skip, os.SEEK_CUR)
+            return read_voxels(data, sizes[::-1], dtype, source, exact=True)
+        return read_voxels(data, sizes[::-1], dtype, source, encoding, skip=byte_skip)
 
 
 def _kind(header, axis):
