@@ -90,3 +90,11 @@ def test_snapshot_errors_name_the_parameter(call, parameter):
     with pytest.raises(InputError) as caught:
         call()
     assert caught.value.parameter == parameter
+
+
+def test_snapshot_takes_the_voxel_types_a_file_may_hold():
+    mask = ball()
+    np.testing.assert_array_equal(voxrender.snapshot(mask.astype(np.float16) * 1000, threshold=500, size=(32, 32)),
+                                  voxrender.snapshot(mask, size=(32, 32)))
+    with pytest.raises(InputError, match="the source array holds complex128 values"):
+        voxrender.snapshot(mask.astype(complex))

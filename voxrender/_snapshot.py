@@ -10,6 +10,7 @@ from ._picture import RenderOptions, picture
 from ._render import DEFAULT_METHOD
 from .errors import InputError
 from .io import Volume, check_spacing
+from .io._shared import real_numbers
 from .pipeline import PrepOptions, ReadOptions, encode_volume, load_segments
 from .prep import LabelSelection, otsu_threshold
 from .view import PRESETS, View
@@ -96,8 +97,7 @@ def _volume(values, spacing, parameter):
     values = np.asarray(values)
     if values.ndim != 3:
         raise InputError(f"an array of shape {values.shape}: give a 3-D array [z, y, x]", parameter=parameter)
-    if values.dtype == bool:
-        values = values.view(np.uint8)
+    values = real_numbers(values, f"the {parameter} array")
     return Volume(values, check_spacing(spacing) if spacing is not None else (1.0, 1.0, 1.0),
                   {"source": f"an array {values.shape[::-1]} (x, y, z)"})
 

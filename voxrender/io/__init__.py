@@ -45,11 +45,11 @@ from ._shared import (
     RawLayout,
     Reader,
     Volume,
-    check_fits,
     check_spacing,
     files_in,
     identity_progress,
     natural_key,
+    real_numbers,
     some_names,
 )
 
@@ -165,7 +165,7 @@ def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, fra
     volume.meta.setdefault("source", str(path))
     if volume.values.ndim != 3 or min(volume.values.shape) < 1:
         raise InputError(f"{path} does not hold a 3-D stack (shape {volume.values.shape})")
-    volume.values = _real_numbers(volume.values, path)
+    volume.values = real_numbers(volume.values, path)
     if orientation is not None:
         volume.direction = orient.direction_of(orientation)
         volume.meta["orientation_from"] = "given"
@@ -181,20 +181,6 @@ def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, fra
         volume.spacing = check_spacing(spacing)
         volume.meta["spacing_from"] = "given"
     return volume
-
-
-def _real_numbers(values, path):
-    """The voxels as integers or floats the renderers take, whatever type the file stores: booleans become 0 and
-    1, 16-bit floats 32-bit ones; complex (or other) values are refused.
-    """
-    if values.dtype.kind == "b" or values.dtype == np.float16:
-        wider = np.uint8 if values.dtype.kind == "b" else np.float32
-        check_fits(values.shape, wider, path)
-        return values.astype(wider)
-    if values.dtype.kind not in "uif":
-        raise InputError(f"{path} holds {values.dtype.name} values; voxrender needs real numbers (integers or "
-                         "floats)")
-    return values
 
 
 def _affine(direction, spacing, origin=None):

@@ -220,6 +220,24 @@ def fill_stack(items, read_slice, label, progress, source):
     return volume
 
 
+def real_numbers(values, source):
+    """The voxels as integers or floats the renderers take, whatever type ``source`` stores: booleans become 0 and
+    1 (a view, no copy), 16-bit floats 32-bit ones; complex (or other) values are refused.
+
+    >>> real_numbers(np.array([True, False]), "mask.npy")
+    array([1, 0], dtype=uint8)
+    """
+    if values.dtype.kind == "b":
+        return values.view(np.uint8)
+    if values.dtype == np.float16:
+        check_fits(values.shape, np.float32, source)
+        return values.astype(np.float32)
+    if values.dtype.kind not in "uif":
+        raise InputError(f"{source} holds {values.dtype.name} values; voxrender needs real numbers (integers or "
+                         "floats)")
+    return values
+
+
 def check_frame(path, frame, count=None):
     """The ``frame`` to read of a 4-D file of ``count`` volumes (``None``: a 3-D file, which takes none), checked;
     a 4-D file of one volume gives it without being asked.
