@@ -245,6 +245,8 @@ def test_a_read_only_output_folder_is_refused_before_any_rendering(tmp_path, sta
             batch.run_batch(items([stacks / "ball.npy"]), out, jobs=1)
         result = CliRunner().invoke(main, ["batch", str(stacks / "ball.npy"), "-o", str(out), "--jobs", "1"])
         assert result.exit_code == 2 and len(result.stderr.splitlines()) == 1
+        result = CliRunner().invoke(main, ["render", str(stacks / "ball.npy"), "-o", str(out / "x.png")])
+        assert result.exit_code == 2 and "is not writable (Read-only file system)" in result.stderr
 
 
 HOLD_THE_LOCK = textwrap.dedent("""

@@ -29,8 +29,9 @@ def check_writable(path):
     folder = path.parent
     if not folder.is_dir():
         raise InputError(f"cannot write {path}: folder {folder} does not exist")
-    if not os.access(folder, os.W_OK):
-        raise InputError(f"cannot write {path}: folder {folder} is not writable")
+    refused = _write_refused(folder)
+    if refused:
+        raise InputError(f"cannot write {path}: folder {folder} is not writable ({refused})")
     if path.is_dir():
         raise InputError(f"cannot write {path}: it is a folder; give a file name")
 
@@ -41,12 +42,22 @@ def check_folder_writable(folder):
     A real write tells what :func:`os.access` cannot: a read-only file system, a full disk, or (when running as
     root, whom permissions do not stop) that the folder is writable after all.
     """
+    refused = _write_refused(folder)
+    if refused:
+        raise InputError(f"cannot write in {folder}: {refused}")
+
+
+def _write_refused(folder):
+    """Why no file can be made in ``folder`` (the system's words), found by making one and removing it; ``None``
+    when one can.
+    """
     try:
         fd, probe = tempfile.mkstemp(prefix=".voxrender-probe-", dir=folder)
     except OSError as exc:
-        raise InputError(f"cannot write in {folder}: {exc.strerror}") from None
+        return exc.strerror or str(exc)
     os.close(fd)
     os.unlink(probe)
+    return None
 
 
 # The temporaries of atomic_output are named .{name}{PARTIAL}XXXXXXXX{suffix}: only a process killed while writing
