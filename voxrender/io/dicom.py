@@ -258,8 +258,8 @@ def _rescale(data, ds, slope=None, intercept=None):
     whole = slope.is_integer() and intercept.is_integer() and data.dtype.kind in "iub"
     if whole and all(np.iinfo(np.int32).min <= e <= np.iinfo(np.int32).max for e in [*ends, slope, intercept]):
         data = data.astype(np.int32) * int(slope) + int(intercept)
-        if data.size and np.iinfo(np.int16).min <= data.min() and data.max() <= np.iinfo(np.int16).max:
-            data = data.astype(np.int16)
+        if data.size and np.iinfo(np.int16).min <= min(ends) and max(ends) <= np.iinfo(np.int16).max:
+            data = data.astype(np.int16)      # the ends of the stored range, rescaled, are those of the data's
         return data
     return (data * np.float32(slope) + np.float32(intercept)).astype(np.float32)
 
