@@ -185,3 +185,19 @@ def test_a_vxo_with_a_missing_or_mismatched_octree_section_is_bad_input(tmp_path
     save(segments, tmp_path / "short.vxo", {**arrays, "octree_level": arrays["octree_level"][:-1]})
     with pytest.raises(InputError, match="do not fit together"):
         load_segments(tmp_path / "short.vxo")
+
+
+@pytest.mark.parametrize("section", [name for name in octree._SECTIONS if name != "octree_n"])
+def test_a_vxo_with_a_value_out_of_range_in_any_section_is_bad_input(tmp_path, section):
+    """A .vxo whose octree arrays fit together but hold a damaged value (a colour, a child, an origin, a digit or
+    an adjacency row out of range) sent the octree renderers indexing out of their tables (exit 1)."""
+    from voxrender.pipeline import load_segments
+    from voxrender.segments import encode, save
+
+    segments = encode(samples.sphere(12) > samples.SAMPLE_THRESHOLD)
+    arrays = octree.sections(octree.build_from_segments(segments))
+    damaged = arrays[section].copy()
+    damaged[len(damaged) // 2] = np.iinfo(damaged.dtype).max
+    save(segments, tmp_path / "damaged.vxo", {**arrays, section: damaged})
+    with pytest.raises(InputError, match="damaged .vxo file: its octree holds values out of range"):
+        load_segments(tmp_path / "damaged.vxo")

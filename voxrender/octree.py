@@ -490,5 +490,33 @@ def from_sections(arrays, shape, source="the file"):
             or arrays["octree_linear"].size % max(n, 1)):
         what = f"its section {missing[0]} is missing" if missing else "its octree sections do not fit together"
         raise InputError(f"{source} is a damaged .vxo file: {what}; encode the object again")
+    if not _values_fit(arrays, n, nodes):
+        raise InputError(f"{source} is a damaged .vxo file: its octree holds values out of range; "
+                         "encode the object again")
     return RegionOctree(n, tuple(shape), arrays["octree_color"], arrays["octree_level"],
                         arrays["octree_origin"].reshape(-1, 3), arrays["octree_first_child"], stored=arrays)
+
+
+def _values_fit(arrays, n, nodes):
+    """Whether a file's octree sections hold only values a renderer can index by: colours and levels in range,
+    children within the node table (a grey node's, none for a leaf), origins in the cube, Gargantini digits, and
+    adjacency rows within their tables.  A few passes over each array, so that a damaged file gets a line, not
+    an index error in a renderer; an octree that is whole but of another object is not found this way.
+    """
+    color, level, first = arrays["octree_color"], arrays["octree_level"], arrays["octree_first_child"]
+    origin, linear = arrays["octree_origin"], arrays["octree_linear"]
+    if nodes and (color.max() > GREY or level.max() > n or np.any(level[1:] < level[:-1])
+                  or first.min() < -1 or first.max() > nodes - 8 or np.any((first >= 0) != (color == GREY))
+                  or origin.min() < 0 or origin.max() >= 1 << n):
+        return False
+    if linear.size and linear.max() > X_MARKER:
+        return False
+    whites = int(np.count_nonzero((color == WHITE) & (first < 0))) if nodes else 0
+    for kind, bound in (("white", whites), ("black", nodes)):
+        for direction in range(6):
+            indptr, indices = (arrays[f"octree_{kind}{direction}_{part}"] for part in ("indptr", "indices"))
+            if (indptr.size != whites + 1 or indptr[0] != 0 or indptr[-1] != indices.size
+                    or np.any(indptr[1:] < indptr[:-1])
+                    or indices.size and (indices.min() < 0 or indices.max() >= bound)):
+                return False
+    return True
