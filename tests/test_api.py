@@ -98,3 +98,17 @@ def test_snapshot_takes_the_voxel_types_a_file_may_hold():
                                   voxrender.snapshot(mask, size=(32, 32)))
     with pytest.raises(InputError, match="the source array holds complex128 values"):
         voxrender.snapshot(mask.astype(complex))
+
+
+def test_render_and_picture_take_what_load_segments_gives_and_use_its_octree(tmp_path):
+    """The module docstring's steps, with the encoded object itself (it was ``.segments`` or an AttributeError)."""
+    np.save(tmp_path / "ball.npy", np.where(ball(), 1000, 0).astype(np.int16))
+    encoded = voxrender.load_segments(tmp_path / "ball.npy", prepare=voxrender.PrepOptions(threshold=500))
+    view = voxrender.View(30, 20, size=(32, 32), scale=1.0)
+    assert not encoded.has_octree
+    image = voxrender.render(encoded, view, method="octree-ftb")
+    assert encoded.has_octree                                       # built once, kept for the next picture
+    np.testing.assert_array_equal(image.depth, voxrender.render(encoded.segments, view, method="octree-ftb").depth)
+    options = voxrender.RenderOptions(method="octree-btf")
+    np.testing.assert_array_equal(voxrender.picture(encoded, view, options).rgb,
+                                  voxrender.picture(encoded.segments, view, options).rgb)

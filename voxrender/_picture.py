@@ -154,7 +154,8 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
 
     Parameters
     ----------
-    segments : Segments
+    segments : Segments or Encoded
+        The object, or the encoded object :func:`voxrender.load_segments` gives (see :func:`render`).
     view : View
         Usually ``options.view(alpha, beta, gamma)``.
     options : RenderOptions, optional
@@ -179,6 +180,7 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
     options = options or RenderOptions()
     image = render(segments, view, options.method, progress, options.supersample, options.clip, options.fit,
                    tree, **options.method_options)
+    segments = getattr(segments, "segments", segments)
     seconds = {"render": image.seconds}
     if not image.coverage.any():
         warnings.warn(_why_empty(segments, image.view, options), stacklevel=2)

@@ -123,8 +123,9 @@ def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, 
 
     Parameters
     ----------
-    segments : Segments
-        The object.
+    segments : Segments or Encoded
+        The object, or the encoded object :func:`voxrender.load_segments` gives, whose region octree the
+        octree methods then use (read from its ``.vxo``, or built once and kept).
     view : View
         Angles and picture size; an unset ``scale`` is fitted (see ``fit``).
     method : str
@@ -157,6 +158,9 @@ def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, 
     (16, 16)
     """
     record = method_record(method, options)
+    if hasattr(segments, "octree") and hasattr(segments, "segments"):      # an Encoded, which keeps its octree
+        tree = segments.octree() if record.octree and tree is None else tree
+        segments = segments.segments
     if not segments.segment_count:
         raise InputError("the object is empty: no voxel reaches the threshold")
     if fit not in ("object", "volume"):
