@@ -87,3 +87,27 @@ def test_headerless_inputs_take_an_orientation_code(tmp_path):
                          PrepOptions(threshold=500, resample=False))
     assert np.array_equal(kept.segments.to_mask(), values >= 500)      # --no-reorient keeps the stored order
     assert segments.encode(values >= 500).voxel_count == kept.segments.voxel_count
+
+
+@pytest.mark.parametrize("code", ["RAS", "LPS", "LIA", "ASR"])
+def test_a_voxel_keeps_its_patient_position_when_the_volume_is_reoriented(tmp_path, code):
+    """patient_affine of the reoriented volume puts every voxel where the stored volume's affine does."""
+    import nibabel
+
+    from voxrender.io import patient_affine, read_volume
+
+    direction = orient.ras_to_lps(orient.direction_of(code))    # the code's axes, written as NIfTI's RAS
+    affine = np.eye(4)
+    affine[:3, :3] = direction * [0.5, 0.8, 2.0]
+    affine[:3, 3] = [10.0, -20.0, 30.0]
+    values = np.arange(4 * 5 * 6, dtype=np.int16).reshape(6, 5, 4)          # [z, y, x], every value once
+    nibabel.save(nibabel.Nifti1Image(values.T, affine), tmp_path / "v.nii")
+    stored, canonical = (read_volume(tmp_path / "v.nii", reorient=flag) for flag in (False, True))
+    for volume in (stored, canonical):
+        z, y, x = np.unravel_index(np.arange(values.size), volume.shape)
+        order = np.argsort(volume.values[z, y, x])
+        points = (patient_affine(volume) @ np.stack([x, y, z, np.ones_like(x)])[:, order])[:3]
+        if volume is stored:
+            expected = points
+    np.testing.assert_allclose(points, expected, atol=1e-5)
+    assert orient.code_of(canonical.direction) == "LPS"

@@ -122,3 +122,16 @@ def to_canonical(values, spacing, direction, source="the header"):
         steps.append("flipped " + ", ".join(sorted(flipped)))
     note = f"{code} -> {CANONICAL}: " + ("; ".join(steps) if steps else "as stored")
     return out, spacing, remaining, note
+
+
+def canonical_corner(shape, direction):
+    """The stored voxel index ``(x, y, z)`` that :func:`to_canonical` brings to index ``(0, 0, 0)``: along each
+    axis it flips, the last voxel, else the first.  With the stored affine, its position is the origin of the
+    canonical grid.
+
+    >>> canonical_corner((2, 3, 4), direction_of("RAS"))      # shape [z, y, x]; x and y flipped
+    [3, 2, 0]
+    """
+    axis, sign, _ = nearest_axes(direction)
+    sizes = tuple(shape)[::-1]                                 # x, y, z
+    return [sizes[k] - 1 if sign[k] < 0 else 0 for k in range(3)]

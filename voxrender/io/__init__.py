@@ -54,7 +54,7 @@ from ._shared import (
 )
 
 __all__ = ["Volume", "RawLayout", "Reader", "READERS", "FORMATS", "read_volume", "detect_format", "natural_key",
-           "check_spacing"]
+           "check_spacing", "patient_affine"]
 
 # The formats by name, in the order ``format="auto"`` tries them: a folder of DICOM files before one of images (an
 # export may hold a preview picture beside its slices), folders of slices before folders of volume files.
@@ -174,6 +174,9 @@ def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, fra
     else:
         volume.meta["orientation"] = orient.code_of(volume.direction)
         volume.meta["affine"] = _affine(volume.direction, volume.spacing, volume.meta.get("origin")).tolist()
+        if reorient and "origin" in volume.meta:          # the position of the voxel that becomes values[0, 0, 0]
+            corner = orient.canonical_corner(volume.shape, volume.direction)
+            volume.meta["origin"] = (np.asarray(volume.meta["affine"])[:3] @ [*corner, 1.0]).tolist()
         if reorient:
             volume.values, volume.spacing, volume.direction, volume.meta["reoriented"] = orient.to_canonical(
                 volume.values, volume.spacing, volume.direction, volume.meta.get("orientation_from", "the header"))
@@ -181,6 +184,19 @@ def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, fra
         volume.spacing = check_spacing(spacing)
         volume.meta["spacing_from"] = "given"
     return volume
+
+
+def patient_affine(volume):
+    """The 4 x 4 matrix from a voxel index ``(x, y, z, 1)`` of ``volume.values`` (as it is now: reoriented, when
+    :func:`read_volume` did) to its patient position (LPS, mm): from its direction, spacing and origin, each the
+    identity, 1 mm or zero where the input does not say.  Pairs a label map with its image.
+
+    >>> volume = Volume(np.zeros((2, 3, 4)), (0.5, 0.5, 2.0), {"origin": [10.0, 0.0, 0.0]})
+    >>> patient_affine(volume)[:3].tolist()
+    [[0.5, 0.0, 0.0, 10.0], [0.0, 0.5, 0.0, 0.0], [0.0, 0.0, 2.0, 0.0]]
+    """
+    return _affine(np.eye(3) if volume.direction is None else volume.direction, volume.spacing,
+                   volume.meta.get("origin"))
 
 
 def _affine(direction, spacing, origin=None):

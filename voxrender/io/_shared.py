@@ -27,7 +27,9 @@ class Volume:
     """A stack of slices: ``values[z, y, x]`` with voxel ``spacing`` (x, y, z) in mm.
 
     ``direction`` (3 x 3, or ``None`` when the input does not say) holds in column ``k`` the patient (LPS)
-    direction along which voxel axis ``k`` (x, y, z) grows; see :mod:`voxrender.orient`.
+    direction along which voxel axis ``k`` (x, y, z) grows; see :mod:`voxrender.orient`.  ``meta["origin"]``, when
+    the input says it, is the patient position (LPS, mm) of voxel ``values[0, 0, 0]``; with the direction and the
+    spacing it makes :func:`voxrender.io.patient_affine`.
 
     Examples
     --------
