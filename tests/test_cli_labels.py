@@ -142,7 +142,7 @@ def test_bad_label_inputs_end_in_one_line(tmp_path, label_file, ct_file):
     small = write_nifti(tmp_path / "small.nii.gz", nested()[:, :, :10])
     (tmp_path / "bad.csv").write_text("label,name,r,g,b\n2,ball,10,200,10\n3,box,red,0,0\n")
     cases = [
-        (["render", fractional, "--labels"], ["--label", "non-integer", "0.5"]),
+        (["render", fractional, "--labels"], ["error: " + str(fractional), "not a label map", "non-integer", "0.5"]),
         (["render", label_file, "--label", "9"], ["--label", "9", "holds 1, 2, 3"]),
         (["render", label_file, "--labels", "--colours", tmp_path / "bad.csv"], ["--colours", "row 3"]),
         (["render", ct_file, "--threshold", "900:100"], ["--threshold", "lo is above hi"]),
@@ -158,6 +158,8 @@ def test_bad_label_inputs_end_in_one_line(tmp_path, label_file, ct_file):
         result = run(*args, "--size", "32", "-o", out)
         assert_bad_input(result, *words)
         assert not out.exists() and not (tmp_path / "l.png").exists(), args
+        blamed = result.stderr.split()[1]
+        assert not blamed.startswith("--") or blamed.rstrip(":") in args, result.stderr   # a flag that was given
 
 
 def test_batch_pairs_images_with_label_maps(tmp_path, ct_file, label_file):

@@ -113,6 +113,19 @@ def test_a_volume_of_nan_is_one_true_line(tmp_path):
     line = one_line_error(run("render", path, "-o", tmp_path / "x.png"), "NaN or infinite")
     assert "--" not in line
     one_line_error(run("info", path), "NaN or infinite")
+    for selection in (["--threshold", "0.5"], ["--preset", "bone"], ["--preset", "skin,bone"]):
+        # was '--threshold: window 300: leaves no object voxel: ...; choose a threshold in that range' for a preset
+        line = one_line_error(run("render", path, *selection, "-o", tmp_path / "x.png"), str(path), "NaN or infinite")
+        assert "--" not in line and "range" not in line
+
+
+def test_a_selection_that_holds_nothing_names_the_range_and_blames_only_a_given_flag(tmp_path):
+    np.save(tmp_path / "low.npy", np.arange(64, dtype=np.int16).reshape(4, 4, 4))
+    line = one_line_error(run("render", tmp_path / "low.npy", "--threshold", 100, "-o", tmp_path / "x.png"),
+                          "--threshold: the threshold 100 holds no voxel", "range from 0 to 63")
+    line = one_line_error(run("render", tmp_path / "low.npy", "--preset", "bone", "-o", tmp_path / "x.png"),
+                          "the window 300 and above holds no voxel", "range from 0 to 63")
+    assert line.endswith("(--threshold)") and not line.startswith("error: --")
 
 
 # ---------------------------------------------------------------- constant, thin and single voxels

@@ -52,6 +52,23 @@ FLAGS = {"picture": "--pattern", "inputs": "INPUT", "compare": "--compare-rays",
          **{name: f"--{kind.flag}" for name, kind in OUTPUTS.items() if kind.flag}}
 
 
+def _placed(error, args):
+    """The error's line: led by the flag at fault when the user gave that flag; when not, the flag that is the
+    fix follows the message (a 4-D file asks for ``--frame``), so that no line blames a flag nobody gave.
+
+    >>> _placed(InputError("choose a frame", parameter="frame"), ["in.nii"])
+    'choose a frame (--frame)'
+    >>> _placed(InputError("must be positive", parameter="scale"), ["in.nii", "--scale=-1"])
+    '--scale: must be positive'
+    """
+    if not error.parameter:
+        return error.message
+    name = flag(error.parameter)
+    if not name.startswith("-") or any(arg == name or arg.startswith(name + "=") for arg in args):
+        return f"{name}: {error.message}"
+    return f"{error.message} ({name})"
+
+
 def flag(parameter):
     """The command-line flag of a library parameter.
 
@@ -273,8 +290,7 @@ class _Group(click.Group):
             click.echo(f"error: {exc.format_message()}{hint}", err=True)
             sys.exit(2)
         except InputError as exc:
-            where = f"{flag(exc.parameter)}: " if exc.parameter else ""
-            click.echo(f"error: {where}{exc.message}", err=True)
+            click.echo(f"error: {_placed(exc, sys.argv[1:] if args is None else args)}", err=True)
             sys.exit(2)
         except KeyboardInterrupt:
             click.echo("interrupted", err=True)
@@ -415,7 +431,7 @@ def _describe(path, volume, prepare):
         if volume.meta.get(key):
             summary[key] = volume.meta[key]
     if prepare.labels is not None and prepare.labels.source is None:       # a label map: its labels
-        summary.update(_describe_labels(values, volume.meta.get("label_table")))
+        summary.update(_describe_labels(values, volume.meta.get("label_table"), path))
         return summary
     threshold = suggested if callable(prepare.threshold) or prepare.threshold is None else prepare.threshold
     mask, info = prep.binarize(volume, threshold, crop=prepare.crop, voxel=prepare.voxel,
@@ -429,9 +445,9 @@ def _describe(path, volume, prepare):
     return summary
 
 
-def _describe_labels(values, stored):
+def _describe_labels(values, stored, source):
     """The labels of a label map: each with its name (as a table or the palette would give it) and voxels."""
-    prep.check_labels(values)
+    prep.check_labels(values, source)
     found, counts = np.unique(np.asarray(values), return_counts=True)
     table = colours.label_colours([int(v) for v in found if v], stored)
     return {"labels": {int(v): {"name": table[int(v)][0], "colour": list(table[int(v)][1]), "voxels": int(c)}
@@ -543,7 +559,7 @@ def sheet_command(inputs, output_path, views, angles, methods, per_label, **opti
     elif per_label:
         loaded = load_segments(inputs[0], read, prepare, progress)
         if loaded.segments.labels is None:
-            raise InputError("--per-label needs an object with labels: a label map with --labels, or --labels-from",
+            raise InputError("needs an object with labels: a label map with --labels, or a CT with --labels-from",
                              parameter="per_label")
         table = label_table(loaded.segments, render_options.colours)
         alone = replace(render_options, legend=False)

@@ -51,6 +51,16 @@ class Window:
     def __str__(self):
         return f"{'' if self.lo is None else f'{self.lo:g}'}:{'' if self.hi is None else f'{self.hi:g}'}"
 
+    def words(self):
+        """The window in words, for messages.
+
+        >>> Window(300).words(), Window(-100, 300).words(), Window(None, 0).words()
+        ('300 and above', '-100 to 300', '0 and below')
+        """
+        if self.hi is None:
+            return f"{self.lo:g} and above"
+        return f"{self.hi:g} and below" if self.lo is None else f"{self.lo:g} to {self.hi:g}"
+
 
 def crop(values, region=None):
     """The subregion ``values[region]`` (a view, no copy), after checking that it lies in the volume.
@@ -254,10 +264,16 @@ def padding_value(volume):
     return low if fills_outside and np.mean(inside == low) < 0.05 else None
 
 
-def _range_text(values):
-    """How the finite values range, in words, for an error that says no voxel was chosen."""
+def _nothing_selected(volume, values, what, parameter):
+    """The error for a selection (``what``, in words) that holds no voxel: with the range the values do hold, so
+    that the fix is in sight, or, when none is a number, the input's fault and nothing a selection could mend.
+    """
     low, high = value_range(values)
-    return "every value is NaN or infinite" if low is None else f"values range from {low:g} to {high:g}"
+    source = volume.meta.get("source", "the volume")
+    if low is None:
+        return InputError(f"{source}: every voxel is NaN or infinite, so no threshold or window selects an object")
+    return InputError(f"{what} holds no voxel of {source}, whose values range from {low:g} to {high:g}; choose a "
+                      "threshold or window in that range", parameter=parameter)
 
 
 def _blocks(values, voxels=1 << 24):
@@ -317,9 +333,8 @@ def binarize(volume, threshold=otsu_threshold, *, crop=None, voxel=None, resampl
 
         mask = remove_small_objects(mask, max_size=int(min_object) - 1, connectivity=3)
     if not mask.any():
-        what = f"window {window}" if isinstance(threshold, Window) else f"threshold {window.lo:g}"
-        raise InputError(f"{what} leaves no object voxel: {_range_text(values)}; choose a threshold in that range",
-                         parameter="threshold")
+        raise _nothing_selected(volume, values, f"the window {window.words()}" if isinstance(threshold, Window)
+                                else f"the threshold {window.lo:g}", "threshold")
     return mask, {"threshold": str(threshold) if isinstance(threshold, Window) else window.lo, "voxel": voxel,
                   "spacing": spacing}
 
@@ -345,8 +360,8 @@ def classify(volume, windows, *, crop=None, voxel=None, resample=True, progress=
     values = _crop(volume.values, crop)
     labels, voxel, spacing = _windowed(values, volume.spacing, windows, voxel, resample, progress)
     if not labels.any():
-        raise InputError(f"no voxel lies in {', '.join(str(w) for w in windows)}: {_range_text(values)}",
-                         parameter="preset")
+        raise _nothing_selected(volume, values, "none of the windows " + ", ".join(w.words() for w in windows),
+                                "preset")
     return labels, {"threshold": ", ".join(str(w) for w in windows), "voxel": voxel, "spacing": spacing}
 
 
@@ -436,7 +451,7 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
     """
     selection = selection or LabelSelection()
     values = _crop(volume.values, crop)
-    check_labels(values)
+    check_labels(values, volume.meta.get("source", "the label map"))
     present = np.unique(np.asarray(values)).astype(np.int64)
     present = present[present != 0]
     chosen = present if selection.chosen is None else np.asarray(sorted(set(selection.chosen)))
@@ -459,18 +474,20 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
     return labels, {"labels": [int(v) for v in chosen], "voxel": voxel, "spacing": spacing}
 
 
-def check_labels(values):
-    """Refuse values that are not a label map: non-integers, negatives, labels above 65535."""
+def check_labels(values, source="the label map"):
+    """Refuse values that are not a label map (non-integers, negatives, labels above 65535), naming ``source``: the
+    file is at fault, not a label the user chose.
+    """
     values = np.asarray(values)
     if values.dtype.kind == "f":
         fractional = values[~(values == np.round(values))]           # NaN and inf too
         if fractional.size:
-            raise InputError(f"this is not a label map: it holds non-integer values such as {fractional.flat[0]:g}; "
-                             "give a label map (whole numbers), or select grey values by a threshold",
-                             parameter="label")
+            raise InputError(f"{source} is not a label map: it holds non-integer values such as "
+                             f"{fractional.flat[0]:g}; give a label map (whole numbers), or select grey values by a "
+                             "threshold")
     elif values.dtype.kind not in "uib":
-        raise InputError(f"a label map must hold whole numbers, not {values.dtype}", parameter="label")
+        raise InputError(f"{source} is not a label map: a label map holds whole numbers, not {values.dtype}")
     if values.size and (np.min(values) < 0 or np.max(values) > 65535):
-        raise InputError(f"labels must lie in 0..65535, but the values run from {np.min(values):g} to "
-                         f"{np.max(values):g}: if this is an image, not a label map, select by a threshold, or pair "
-                         "it with its label map", parameter="label")
+        raise InputError(f"{source} is not a label map: labels lie in 0..65535, but its values run from "
+                         f"{np.min(values):g} to {np.max(values):g}; if it is an image, select by a threshold, or "
+                         "pair it with its label map")
