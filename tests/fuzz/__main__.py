@@ -1,5 +1,6 @@
-"""``python -m tests.fuzz [--seed S] [--cases N] [--jobs J] [--keep FOLDER] [--first K]``: run the fuzzing gate,
-print the count of cases by outcome and by format, keep every misbehaving case, exit 1 if any misbehaved."""
+"""``python -m tests.fuzz [--seed S] [--cases N] [--jobs J] [--keep FOLDER] [--first K] [--lines FILE]``: run the
+fuzzing gate, print the count of cases by outcome and by format, keep every misbehaving case, exit 1 if any
+misbehaved; ``--lines`` also writes every case's outcome and last line, tab-separated, to read the messages."""
 
 import argparse
 import collections
@@ -19,16 +20,20 @@ def main(argv=None):
     parser.add_argument("--first", type=int, default=0, help="the number of the first case (default 0)")
     parser.add_argument("--jobs", type=int, default=2, help="cases run at once (default 2)")
     parser.add_argument("--keep", type=Path, default=KEPT, help=f"where misbehaving cases go (default {KEPT})")
+    parser.add_argument("--lines", type=Path, help="write each case's number, name, outcome and last line here")
     args = parser.parse_args(argv)
 
     started = time.perf_counter()
     outcomes, by_format, bad = collections.Counter(), collections.defaultdict(collections.Counter), []
     numbers = range(args.first, args.first + args.cases)
+    lines = open(args.lines, "w") if args.lines else None
     with ProcessPoolExecutor(args.jobs) as pool:
         for done, (number, name, fmt, outcome, tail) in enumerate(
                 pool.map(run_case, [args.seed] * len(numbers), numbers, [args.keep] * len(numbers)), 1):
             outcomes[outcome] += 1
             by_format[fmt][outcome] += 1
+            if lines:
+                print(number, name, outcome, tail[-1] if tail else "", sep="\t", file=lines, flush=True)
             if outcome not in GOOD:
                 bad.append((number, name, outcome, tail))
                 print(f"{outcome}: case {number}: {name}: {tail[-1] if tail else ''}", flush=True)
