@@ -2,17 +2,19 @@
 
 A colour table maps labels to ``(name, (r, g, b))`` with 8-bit components.  One comes from a file
 (:func:`read_colour_table`: CSV, JSON, 3D Slicer's ``.ctbl``, ITK-SNAP's label descriptions), from a ``.seg.nrrd``
-(its segments' names and colours, read with the volume), or from :func:`palette`; :func:`label_colours` settles
-which one each label takes.
+(its segments' names and colours, read with the volume), from the anatomy table by a structure's name
+(:func:`anatomy_colour`), or from :func:`palette`; :func:`label_colours` settles which one each label takes.
 """
 
 from __future__ import annotations
 
 import csv
+import functools
 import json
 import re
 import shlex
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -166,21 +168,76 @@ def _entry(path, number, row):
     return label, name, rgb
 
 
+@functools.cache
+def _anatomy():
+    """The anatomy table, ``{key: (r, g, b)}``, keyed by structure name and by SNOMED CT meaning (see
+    :func:`anatomy_colour`).
+    """
+    table = {}
+    text = resources.files("voxrender").joinpath("data/anatomy_colours.csv").read_text()
+    for row in csv.DictReader(line for line in text.splitlines() if not line.startswith("#")):
+        colour = (int(row["r"]), int(row["g"]), int(row["b"]))
+        meaning = f"{row['modifier']} {row['meaning']}" if row["modifier"] else row["meaning"]
+        for key in (row["structure"], meaning):
+            table.setdefault(_anatomy_key(key), colour)
+    return table
+
+
+def _anatomy_key(name):
+    """A name as the anatomy table is searched: lower case, words joined by ``_``, a ``left_``/``right_`` prefix
+    moved to the end (``Left kidney`` and ``kidney_left`` are one key).
+    """
+    key = re.sub(r"[\s\-.]+", "_", str(name).strip().lower())
+    side = re.match(r"(left|right)_(.+)", key)
+    return f"{side[2]}_{side[1]}" if side else key
+
+
+def anatomy_colour(name):
+    """The colour of an anatomical structure by its name, or ``None`` when the table does not know it.
+
+    The table holds the 170 structures of TotalSegmentator, with the colours TotalSegmentator itself gives them in
+    DICOM SEG and RTSTRUCT output, keyed by its names (``liver``, ``kidney_left``, ``vertebrae_L1``,
+    ``rib_left_1``) and by their SNOMED CT meanings (``Liver``, ``Left kidney``, ``L1 vertebra``).  Names match
+    without regard to case, spaces or hyphens, and with a side given first or last (``left_kidney``).
+
+    >>> anatomy_colour("liver"), anatomy_colour("Left kidney") == anatomy_colour("kidney_left")
+    ((40, 140, 40), True)
+    >>> anatomy_colour("label 3") is None
+    True
+
+    References
+    ----------
+    TotalSegmentator, ``totalsegmentator/resources/totalsegmentator_snomed_mapping.csv`` (Apache License 2.0),
+    https://github.com/wasserth/TotalSegmentator; kept as ``voxrender/data/anatomy_colours.csv``.
+    """
+    return _anatomy().get(_anatomy_key(name))
+
+
 def label_colours(labels, stored=None, given=None):
     """Name and colour of each of ``labels``: ``{label: (name, (r, g, b))}``.
 
-    A label takes its entry in ``given`` (a table the user gave), else in ``stored`` (kept with the object, e.g.
-    a ``.seg.nrrd``'s segments), else ``"label N"`` and the :func:`palette` colour.  ``stored`` may be the JSON
-    form kept in a ``.vxs`` (``{"3": {"name": ..., "colour": [...]}}``).
+    A label takes its entry in ``given`` (a table the user gave), else in ``stored`` (kept with the object: a
+    ``.seg.nrrd``'s segments, a SEG's, the names of a mask folder's files), else ``"label N"``.  A stored name
+    without a colour takes the anatomy table's (:func:`anatomy_colour`); what is left takes the :func:`palette`.
+    ``stored`` may be the JSON form kept in a ``.vxs`` (``{"3": {"name": ..., "colour": [...] or None}}``).
 
     >>> label_colours([1, 2], given={2: ("liver", (200, 100, 50))})
     {1: ('label 1', (230, 159, 0)), 2: ('liver', (200, 100, 50))}
+    >>> label_colours([1, 2], stored={"1": {"name": "liver", "colour": None}, "2": {"name": "tumour", "colour": None}})
+    {1: ('liver', (40, 140, 40)), 2: ('tumour', (86, 180, 233))}
     """
-    stored = {int(k): (v["name"], tuple(v["colour"])) if isinstance(v, dict) else v
-              for k, v in (stored or {}).items()}
     built_in = palette(labels)
-    return {int(v): (given or {}).get(int(v)) or stored.get(int(v)) or (f"label {v}", built_in[int(v)])
-            for v in labels}
+    table = {}
+    for v in labels:
+        entry = (given or {}).get(int(v))
+        if entry is None:
+            kept = (stored or {}).get(str(int(v)), (stored or {}).get(int(v)))
+            name, colour = (kept["name"], kept.get("colour")) if isinstance(kept, dict) else kept or (None, None)
+            name = name or f"label {v}"
+            colour = colour or anatomy_colour(name) or built_in[int(v)]
+            entry = (name, tuple(int(c) for c in colour))
+        table[int(v)] = entry
+    return table
 
 
 @dataclass(frozen=True)
