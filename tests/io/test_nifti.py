@@ -218,3 +218,54 @@ def test_sizes_that_are_not_positive_are_bad_input(tmp_path):
     (tmp_path / "v.nii").write_bytes(bytes(whole))
     with pytest.raises(InputError, match=r"its sizes \(dim\) \[7, 0, -16512\] must be positive"):
         io.read_volume(tmp_path / "v.nii")
+
+
+def add_label_map_to_nifti(img_in, label_map):
+    """TotalSegmentator's own writer of its ``--ml`` label names (``totalsegmentator/nifti_ext_header.py``,
+    https://github.com/wasserth/TotalSegmentator, Apache-2.0), as it is there: the names travel in a Caret XML
+    label table, in a header extension of code 0, with colours that cycle through twelve."""
+    import nibabel as nib
+
+    colors = [[255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 255, 0], [255, 0, 255], [0, 255, 255], [255, 128, 0],
+              [255, 0, 128], [128, 255, 128], [0, 128, 255], [128, 128, 128], [185, 170, 155]]
+    xmlpre = '<?xml version="1.0" encoding="UTF-8"?> <CaretExtension>  <Date><![CDATA[2013-07-14T05:45:09]]></Date>   <VolumeInformation Index="0">   <LabelTable>'  # noqa: E501
+    body = ""
+    for label_id, label_name in label_map.items():
+        rgb = colors[label_id % len(colors)]
+        body += f'<Label Key="{label_id}" Red="{rgb[0] / 255}" Green="{rgb[1] / 255}" Blue="{rgb[2] / 255}" Alpha="1"><![CDATA[{label_name}]]></Label>\n'  # noqa: E501
+    xmlpost = '  </LabelTable>  <StudyMetaDataLinkSet>  </StudyMetaDataLinkSet>  <VolumeType><![CDATA[Label]]></VolumeType>   </VolumeInformation></CaretExtension>'  # noqa: E501
+    xml = xmlpre + "\n" + body + "\n" + xmlpost + "\n              "
+    img_in.header.extensions.append(nib.nifti1.Nifti1Extension(0, bytes(xml, "utf-8")))
+    return img_in
+
+
+def test_a_totalsegmentator_multilabel_file_names_its_labels_and_colours_them_by_anatomy(tmp_path):
+    """Its names were not read: the legend showed 'label 5'."""
+    import nibabel
+
+    from voxrender.colours import anatomy_colour, label_colours
+
+    data = np.zeros((6, 6, 6), np.uint8)
+    data[1:3, 1:3, 1:3], data[3:5, 3:5, 3:5] = 5, 6
+    image = nibabel.Nifti1Image(data, np.eye(4))
+    image.header.extensions.append(nibabel.nifti1.Nifti1Extension(6, b"a comment before the table"))
+    names = {5: "liver", 6: "vertebrae_L1", 7: "kidney_left"}
+    nibabel.save(add_label_map_to_nifti(image, names), tmp_path / "ml.nii.gz")
+    volume = io.read_volume(tmp_path / "ml.nii.gz")
+    assert volume.meta["label_table"] == {"5": {"name": "liver", "colour": None},
+                                          "6": {"name": "vertebrae_L1", "colour": None},
+                                          "7": {"name": "kidney_left", "colour": None}}
+    assert label_colours([5, 6], volume.meta["label_table"]) == {
+        5: ("liver", anatomy_colour("liver")), 6: ("vertebrae_L1", anatomy_colour("vertebrae_L1"))}
+    assert anatomy_colour("liver") != anatomy_colour("vertebrae_L1")
+
+
+def test_a_damaged_label_table_leaves_the_labels_numbered_with_a_warning(tmp_path):
+    import nibabel
+
+    image = nibabel.Nifti1Image(np.ones((4, 4, 4), np.uint8), np.eye(4))
+    image.header.extensions.append(nibabel.nifti1.Nifti1Extension(0, b"<LabelTable><Label Key='x'>liver"))
+    nibabel.save(image, tmp_path / "bad.nii")
+    with pytest.warns(UserWarning, match="label table .* is damaged"):
+        volume = io.read_volume(tmp_path / "bad.nii")
+    assert "label_table" not in volume.meta and volume.values.sum() == 64

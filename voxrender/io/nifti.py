@@ -92,7 +92,47 @@ def read_nifti(path, progress, frame=None):
         meta["orientation_from"] = "unknown: NIfTI without sform or qform"
     if header.get("scl_slope") is not None and np.isfinite(header["scl_slope"]) and header["scl_slope"] not in (0, 1):
         meta["scaled"] = f"scl_slope {float(header['scl_slope']):g}, scl_inter {float(header['scl_inter']):g}"
+    table = _label_table(path, header)
+    if table:
+        meta["label_table"] = table
     return Volume(values, check_spacing(spacing, path), meta, direction)
+
+
+CARET = 30        # the extension code of a Connectome Workbench label table, whose colours are the user's
+
+
+def _label_table(path, header):
+    """The label names a NIfTI file keeps in a header extension: the Caret XML ``LabelTable`` that
+    TotalSegmentator's multi-label output (``--ml``) appends with extension code 0, and Connectome Workbench's
+    label volumes with code 30.  ``{"5": {"name": "liver", "colour": None}}``: TotalSegmentator's colours only
+    cycle through twelve values, so only Workbench's (code 30) are kept.  A table that does not parse is left out,
+    with a warning: the voxels are still good.
+
+    References
+    ----------
+    TotalSegmentator, ``totalsegmentator/nifti_ext_header.py`` (``add_label_map_to_nifti``,
+    ``load_multilabel_nifti``), https://github.com/wasserth/TotalSegmentator
+    """
+    import xml.etree.ElementTree as ElementTree
+
+    for extension in getattr(header, "extensions", ()):
+        content = extension.get_content()
+        if not isinstance(content, bytes) or b"<LabelTable" not in content:
+            continue
+        try:
+            root = ElementTree.fromstring(content.rstrip(b"\0").decode("utf-8", errors="replace"))
+            table = {}
+            for label in root.iter("Label"):
+                key, name = int(label.get("Key")), (label.text or "").strip()
+                colour = [float(label.get(c, "nan")) for c in ("Red", "Green", "Blue")]
+                colour = [round(255 * c) for c in colour] if all(0 <= c <= 1 for c in colour) else None
+                if key > 0 and name:
+                    table[str(key)] = {"name": name, "colour": colour if extension.get_code() == CARET else None}
+            return table
+        except (ElementTree.ParseError, TypeError, ValueError, OverflowError) as exc:
+            warnings.warn(f"{path}: its label table (a header extension) is damaged ({first_line(exc)}); the labels "
+                          "are shown by number", stacklevel=3)
+    return {}
 
 
 # Intents of a NIfTI file that holds no spatial volume, and the CIFTI-2 range (values on brainordinates)
