@@ -171,6 +171,10 @@ def test_batch_pairs_images_with_label_maps(tmp_path, ct_file, label_file):
         rows = list(csv.DictReader(f))
     assert [r["labels"] for r in rows[:2]] != ["", ""] and all(int(r["labels"]) >= 2 for r in rows[:2])
     assert [r["labels"] for r in rows[2:]] == ["", ""]                  # the second row is a plain CT
+    volumes = {v["label"]: v for v in json.loads(rows[0]["label_volumes"])}
+    assert {label: v["voxels"] for label, v in volumes.items()} == \
+        {int(v): int((nested() == v).sum()) for v in (1, 2, 3)}           # 1 mm voxels: the file's own counts
+    assert all(v["ml"] == round(v["voxels"] / 1000, 3) for v in volumes.values()) and rows[2]["label_volumes"] == ""
     made = sorted(p.name for p in (tmp_path / "out" / "ct").iterdir())
     assert "left-label3.png" in made and "anterior.png" in made
     alone = iio.imread(tmp_path / "out" / "ct" / "left-label3.png")
@@ -184,6 +188,22 @@ def test_info_lists_the_labels_of_a_label_map(label_file):
     expected = np.unique(nested(), return_counts=True)
     assert {int(k): v["voxels"] for k, v in labels.items()} == {int(v): int(c)
                                                                 for v, c in zip(*expected, strict=True) if v}
+    assert all(v["ml"] == round(v["voxels"] / 1000, 3) for v in labels.values())     # 1 mm voxels
+
+
+def test_every_label_list_gives_voxels_and_millilitres(tmp_path):
+    """The number a QC reader compares first: each label's volume, on anisotropic voxels, in info and --labels-out."""
+    labels = nested()
+    path = write_nifti(tmp_path / "seg.nii.gz", labels, spacing=(0.5, 0.5, 2.0))
+    info = json.loads(run("info", path, "--labels", "--json").output)["labels"]
+    out = run("render", path, "--labels", "--size", "48", "--labels-out", tmp_path / "l.json", "-o", tmp_path / "l.png")
+    assert out.exit_code == 0, out.output
+    listed = {v["label"]: v for v in json.loads((tmp_path / "l.json").read_text())["labels"]}
+    for label in (1, 2, 3):
+        truth = int((labels == label).sum()) * 0.5 * 0.5 * 2.0 / 1000
+        assert info[str(label)]["ml"] == round(truth, 3)
+        assert listed[label]["ml"] == round(truth, 3)                       # counted on the file's own grid
+        assert listed[label]["voxels"] == pytest.approx(int((labels == label).sum()) * 4, rel=0.1)   # 0.5 mm cubes
 
 
 def test_label_options_with_a_single_object_are_refused(tmp_path, ct_file, label_file):

@@ -131,8 +131,9 @@ class Outputs:
 class Picture:
     """A finished picture: ``rgb`` (H, W, 3) uint8, the :class:`DepthImage`, ``seconds`` by stage, the
     image-space ``normals`` (H, W, 3) it was lit with (NaN in the background), and for a multi-label object the
-    label image (uint16 (H, W), see :mod:`voxrender.labels`) and ``label_table``, ``{label: (name, (r, g, b))}``
-    of the labels it shows.
+    label image (uint16 (H, W), see :mod:`voxrender.labels`), ``label_table``, ``{label: (name, (r, g, b))}``
+    of the object's labels, and ``label_rows``, each label with its voxels, mL and the pixels it shows
+    (:func:`voxrender.labels.label_list`).
     """
 
     rgb: np.ndarray
@@ -141,12 +142,11 @@ class Picture:
     normals: np.ndarray | None = None
     labels: np.ndarray | None = None
     label_table: dict | None = None
+    label_rows: list | None = None
 
     def visible_labels(self):
-        """``[{"label", "name", "colour", "pixels"}]`` of the labels the picture shows, by label."""
-        counts = self.image.stats.get("label_pixels", {})
-        return [{"label": label, "name": name, "colour": list(colour), "pixels": counts[str(label)]}
-                for label, (name, colour) in sorted(self.label_table.items()) if str(label) in counts]
+        """The :attr:`label_rows` of the labels the picture shows."""
+        return [row for row in self.label_rows or () if row["pixels"]]
 
 
 def picture(segments, view, options=None, progress=None, tree=None, normals=None):
@@ -204,7 +204,15 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
         from .marks import draw_marks
 
         rgb = draw_marks(rgb, image.view)
-    result = Picture(rgb, image, {**seconds, "shade": time.perf_counter() - started}, normal_image, labels, table)
+    rows = None
+    if table is not None:
+        from .labels import label_list
+
+        voxels = segments.label_voxels()               # the labels the object holds (a threshold may empty some)
+        rows = label_list({k: v for k, v in table.items() if voxels.get(k)}, voxels, segments.spacing,
+                          image.stats["label_pixels"], segments.meta.get("label_ml"))
+    result = Picture(rgb, image, {**seconds, "shade": time.perf_counter() - started}, normal_image, labels, table,
+                     rows)
     if options.legend and table is not None:
         from .marks import draw_legend
 

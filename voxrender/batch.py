@@ -53,7 +53,7 @@ from .prep import LabelSelection, otsu_threshold
 from .view import PRESETS, angles_from_matrix, frame_together, rotation_matrix
 
 SUMMARY_COLUMNS = ["input", "name", "view", "alpha", "beta", "gamma", "method", "output", "status", "error",
-                   "labels", "load_s", "prepare_s", "render_s", "shade_s", "write_s", "total_s", "stats"]
+                   "labels", "label_volumes", "load_s", "prepare_s", "render_s", "shade_s", "write_s", "total_s", "stats"]
 
 
 @dataclass(frozen=True)
@@ -416,6 +416,8 @@ def _render_task(item, view, index, segments_path, out_dir, encode_seconds):
         return _summary_row(item, view, outputs.picture, "failed", f"internal error: {type(exc).__name__}: {exc}")
     return _summary_row(item, view, outputs.picture, "ok", stats=json.dumps(result.image.stats, default=float),
                        labels=len(result.image.stats.get("label_pixels", {})) if result.labels is not None else "",
+                       label_volumes=json.dumps([{k: row[k] for k in ("label", "name", "voxels", "ml")}
+                                                 for row in result.label_rows]) if result.label_rows else "",
                        load_s=encode_seconds.get("load", 0.0), prepare_s=encode_seconds.get("prepare", 0.0),
                        **{f"{stage}_s": value for stage, value in seconds.items()})   # load and prepare: the input's
 

@@ -431,7 +431,7 @@ def _describe(path, volume, prepare):
         if volume.meta.get(key):
             summary[key] = volume.meta[key]
     if prepare.labels is not None and prepare.labels.source is None:       # a label map: its labels
-        summary.update(_describe_labels(values, volume.meta.get("label_table"), path))
+        summary.update(_describe_labels(volume, values, path))
         return summary
     threshold = suggested if callable(prepare.threshold) or prepare.threshold is None else prepare.threshold
     mask, info = prep.binarize(volume, threshold, crop=prepare.crop, voxel=prepare.voxel,
@@ -445,13 +445,21 @@ def _describe(path, volume, prepare):
     return summary
 
 
-def _describe_labels(values, stored, source):
-    """The labels of a label map: each with its name (as a table or the palette would give it) and voxels."""
+def _describe_labels(volume, values, source):
+    """The labels of a label map: each with its name (as a table or the palette would give it), voxels and mL,
+    those its file names but that hold no voxel too, and the overlaps its reader resolved.
+    """
+    from .labels import label_list
+
     prep.check_labels(values, source)
-    found, counts = np.unique(np.asarray(values), return_counts=True)
-    table = colours.label_colours([int(v) for v in found if v], stored)
-    return {"labels": {int(v): {"name": table[int(v)][0], "colour": list(table[int(v)][1]), "voxels": int(c)}
-                       for v, c in zip(found, counts, strict=True) if v}}
+    counts = prep.label_counts(values)
+    stored = volume.meta.get("label_table") or {}
+    table = colours.label_colours(sorted(set(counts) | {int(k) for k in stored}), stored)
+    rows = label_list(table, counts, volume.spacing)
+    summary = {"labels": {row.pop("label"): row for row in rows}}
+    if volume.meta.get("overlaps"):
+        summary["overlaps"] = volume.meta["overlaps"]
+    return summary
 
 
 class _BatchBar:

@@ -106,3 +106,25 @@ def label_pixels(labels):
     """
     values, counts = np.unique(labels[labels > 0], return_counts=True)
     return {int(v): int(c) for v, c in zip(values, counts, strict=True)}
+
+
+def label_list(table, voxels, spacing, pixels=None, ml=None):
+    """The rows a label list shows (``info``, ``--labels-out``, a batch's summary): each label of ``table``
+    (``{label: (name, (r, g, b))}``) with its voxels, its volume in mL and, of a picture, the ``pixels`` it shows.
+    The volume is ``ml[str(label)]`` when given (a label map's own count on its own grid, which resampling to cubic
+    voxels would change by a slice's worth at each end), else ``voxels`` times the voxel volume of ``spacing``.
+
+    >>> label_list({2: ("liver", (40, 140, 40))}, {2: 1500}, (1.0, 1.0, 2.0), pixels={"2": 300})
+    [{'label': 2, 'name': 'liver', 'colour': [40, 140, 40], 'voxels': 1500, 'ml': 3.0, 'pixels': 300}]
+    """
+    voxel_ml = float(np.prod(spacing)) / 1000
+    rows = []
+    for label, (name, colour) in sorted(table.items()):
+        count = int(voxels.get(label, 0))
+        row = {"label": int(label), "name": name, "colour": [int(c) for c in colour], "voxels": count,
+               "ml": (ml or {}).get(str(label), round(count * voxel_ml, 3))}
+        if pixels is not None:
+            row["pixels"] = int(pixels.get(str(label), 0))
+        rows.append(row)
+    return rows
+

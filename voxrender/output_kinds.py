@@ -105,8 +105,9 @@ OUTPUTS = {
         lambda path, result, about: output.write_png(path, shade.normals_to_rgb(result.normals)), "normals-png",
         GRADIENT_NORMALS),
     "labels_json": OutputKind(
-        ".json", "Save the labels the picture shows, with names, colours and pixel counts; in a batch, a pattern.",
-        lambda path, result, about: output.write_json(path, {"labels": result.visible_labels()}), "labels-out",
+        ".json", "Save the object's labels: names, colours, voxels, volumes in mL and the pixels each shows; in a "
+        "batch, a pattern.",
+        lambda path, result, about: output.write_json(path, {"labels": result.label_rows}), "labels-out",
         LABELS),
     "label_png": OutputKind(
         ".png", "Save the label image (16-bit, one label per pixel, 0 background); in a batch, a pattern.",

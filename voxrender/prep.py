@@ -474,6 +474,21 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
     return labels, {"labels": [int(v) for v in chosen], "voxel": voxel, "spacing": spacing}
 
 
+def label_counts(values):
+    """The voxels of each label of a label map, ``{label: count}`` for the labels above 0 that it holds; a few
+    slices at a time, so that a whole-body map is counted without an int64 copy of it.
+
+    >>> label_counts(np.array([[[0, 3, 3], [7, 0, 3]]], np.uint8))
+    {3: 3, 7: 1}
+    """
+    total = np.zeros(1, np.int64)
+    for part in _blocks(values):
+        counts = np.bincount(np.asarray(part, np.int64).ravel())
+        total = np.pad(total, (0, max(0, len(counts) - len(total)))) if len(counts) > len(total) else total
+        total[:len(counts)] += counts
+    return {int(v): int(total[v]) for v in np.flatnonzero(total) if v}
+
+
 def check_labels(values, source="the label map"):
     """Refuse values that are not a label map (non-integers, negatives, labels above 65535), naming ``source``: the
     file is at fault, not a label the user chose.

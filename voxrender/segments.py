@@ -87,6 +87,17 @@ class Segments:
         """How many voxels the object has."""
         return int(np.sum(self.ends.astype(np.int64) - self.starts + 1))
 
+    def label_voxels(self):
+        """How many voxels each label has, ``{label: count}``, by label; ``{}`` for a single object.
+
+        >>> encode_labels(np.array([[[0, 2, 2, 5]]])).label_voxels()
+        {2: 2, 5: 1}
+        """
+        if self.labels is None:
+            return {}
+        counts = np.bincount(self.labels, weights=self.ends.astype(np.int64) - self.starts + 1)
+        return {int(v): int(counts[v]) for v in np.flatnonzero(counts)}
+
     def run_rows(self):
         """The row ``r = z * ny + y`` of every run (int64).
 
