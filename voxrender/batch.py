@@ -53,7 +53,8 @@ from .prep import LabelSelection, otsu_threshold
 from .view import PRESETS, angles_from_matrix, frame_together, rotation_matrix
 
 SUMMARY_COLUMNS = ["input", "name", "view", "alpha", "beta", "gamma", "method", "output", "status", "error",
-                   "labels", "label_volumes", "load_s", "prepare_s", "render_s", "shade_s", "write_s", "total_s", "stats"]
+                   "labels", "label_volumes", "load_s", "prepare_s", "render_s", "shade_s", "write_s", "total_s",
+                   "stats"]
 
 
 @dataclass(frozen=True)
