@@ -327,19 +327,24 @@ def read_sections(path):
         raw = np.asarray(np.memmap(path, np.uint8, mode="r"))   # plain views of the mapping: no memmap overhead
         arrays = {}
         for name, spec in header["arrays"].items():
-            begin, count, dtype = int(spec["offset"]), int(spec["count"]), np.dtype(spec["dtype"])
+            begin, count = int(spec["offset"]), int(spec["count"])
+            try:
+                dtype = np.dtype(spec["dtype"])
+            except TypeError:
+                raise _damaged(path, f"its array {name} has no number type ({spec['dtype']!r})") from None
             if dtype.kind not in "biuf" or begin < 0 or count < 0 or data_start + begin + count * dtype.itemsize > size:
                 raise _damaged(path, f"its array {name} ({count} of {dtype}) is not within the file")
             arrays[name] = raw[data_start + begin:data_start + begin + count * dtype.itemsize].view(dtype)
     except InputError:
         raise
     except (OSError, ValueError, KeyError, IndexError, TypeError, AttributeError) as exc:
-        raise InputError(f"{path} is a damaged .vxs file ({type(exc).__name__}); encode it again") from None
+        raise _damaged(path, f"{type(exc).__name__} in its header") from None
     return header, arrays
 
 
 def _damaged(path, what):
-    return InputError(f"{path} is a damaged .vxs file ({what}); encode it again")
+    kind = ".vxo" if Path(path).suffix.lower() == ".vxo" else ".vxs"
+    return InputError(f"{path} is a damaged {kind} file ({what}); encode it again")
 
 
 def is_mapped(array):
