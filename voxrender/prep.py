@@ -322,7 +322,10 @@ def binarize(volume, threshold=otsu_threshold, *, crop=None, voxel=None, resampl
     """
     values = _crop(volume.values, crop)
     if threshold is otsu_threshold:
-        threshold = otsu_threshold(values, padding_value(volume))
+        try:
+            threshold = otsu_threshold(values, padding_value(volume))
+        except InputError as exc:                      # a constant or all-NaN input: name it
+            raise InputError(f"{volume.meta.get('source', 'the volume')}: {exc.message}", exc.parameter) from None
     elif callable(threshold):
         threshold = threshold(values)
     window = threshold if isinstance(threshold, Window) else Window(float(threshold))
@@ -451,15 +454,17 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
     """
     selection = selection or LabelSelection()
     values = _crop(volume.values, crop)
-    check_labels(values, volume.meta.get("source", "the label map"))
-    present = np.unique(np.asarray(values)).astype(np.int64)
-    present = present[present != 0]
+    source = volume.meta.get("source", "the label map")
+    check_labels(values, source)
+    present = np.asarray(sorted(label_counts(values)), np.int64)          # a count, not a sort of every voxel
+    if not len(present):
+        raise InputError(f"{source} holds no label: every voxel is 0 (background)" + (" in the crop" if crop else ""))
     chosen = present if selection.chosen is None else np.asarray(sorted(set(selection.chosen)))
     missing = np.setdiff1d(chosen, present)
-    if len(missing) or not len(chosen):
+    if len(missing):
         shown = ", ".join(str(v) for v in present[:30]) + (" ..." if len(present) > 30 else "")
-        raise InputError(f"label {', '.join(str(v) for v in missing) or 'of any kind'} is not in the label map; "
-                         f"it holds {shown or 'only 0 (background)'}", parameter="label")
+        raise InputError(f"label {', '.join(str(v) for v in missing)} is not in {source}; it holds {shown}",
+                         parameter="label")
     voxel, out_shape = _grid(values.shape, volume.spacing, voxel, resample)
     spacing = tuple(float(s) for s in volume.spacing)
     if out_shape is not None:
