@@ -267,3 +267,17 @@ def test_vhf_head_keeps_its_otsu_threshold():
     volume = read_volume(data_path("vhf_head"))
     assert prep.padding_value(volume) is None
     assert prep.otsu_threshold(volume.values, prep.padding_value(volume)) == -445.2744140625
+
+
+def test_a_slice_of_nan_resamples_without_a_warning():
+    """Found by the fuzzing gate: scikit-image's warp clipped each resampled slice to its nanmin, which warned
+    'All-NaN slice encountered' for a slice of NaN; linear interpolation needs no clip."""
+    from voxrender.pipeline import PrepOptions, encode_volume
+
+    values = np.full((6, 12, 12), 100, np.float32)
+    values[:, 3:9, 3:9] = 900
+    values[2] = np.nan
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        encoded = encode_volume(Volume(values, (0.7, 0.9, 1.0)), PrepOptions(threshold=500))
+    assert encoded.voxel_count > 0

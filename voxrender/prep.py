@@ -127,8 +127,9 @@ def _resample_slices(values, spacing, voxel, progress=None):
                 cache.pop(min(cache))
             data = np.asarray(values[i], dtype=np.float32)
             if not inplane_same:           # a float32 slice may be a read-only map of the file: warp takes no such
+                # linear interpolation stays within its inputs: no clip (whose nanmin warns on an all-NaN slice)
                 data = warp(np.require(data, requirements="W"), to_input, output_shape=(out_y, out_x), order=1,
-                            mode="edge", preserve_range=True).astype(np.float32)
+                            mode="edge", preserve_range=True, clip=False).astype(np.float32)
             cache[i] = data
         return cache[i]
 
