@@ -21,8 +21,8 @@ from ._shared import Reader, Volume, check_fits, check_spacing, fill_stack, firs
 SUFFIXES = (".dcm", ".dicom", ".ima")
 # The header values that group, sort and place the slices.
 HEADER_KEYWORDS = ("Rows", "Columns", "Modality", "SOPClassUID", "SeriesInstanceUID", "SeriesDescription",
-                   "NumberOfFrames", "ImagePositionPatient", "ImageOrientationPatient", "InstanceNumber",
-                   "PixelSpacing", "SliceThickness", "SpacingBetweenSlices")
+                   "FrameOfReferenceUID", "NumberOfFrames", "ImagePositionPatient", "ImageOrientationPatient",
+                   "InstanceNumber", "PixelSpacing", "SliceThickness", "SpacingBetweenSlices")
 
 
 def damaged_file_errors():
@@ -148,6 +148,7 @@ def read_dicom(folder, progress, series=None):
 
     values = fill_stack(chosen, read, "reading DICOM slices", progress, folder)
     meta = {"slices": len(chosen), "series": str(getattr(first, "SeriesInstanceUID", "")),
+            "frame_of_reference": str(getattr(first, "FrameOfReferenceUID", "")),
             "description": str(getattr(first, "SeriesDescription", "")),
             "modality": str(getattr(first, "Modality", "")),
             "units": "HU" if str(getattr(first, "Modality", "")) == "CT" else "stored values",
@@ -292,6 +293,7 @@ def _read_multiframe(path):
     orientation = attribute(0, "PlaneOrientationSequence", "ImageOrientationPatient")
     pixel = attribute(0, "PixelMeasuresSequence", "PixelSpacing")
     meta = {"slices": count, "series": str(getattr(ds, "SeriesInstanceUID", "")),
+            "frame_of_reference": str(getattr(ds, "FrameOfReferenceUID", "")),
             "description": str(getattr(ds, "SeriesDescription", "")), "modality": str(getattr(ds, "Modality", "")),
             "spacing_from": "DICOM"}
     if per_frame is not None:
