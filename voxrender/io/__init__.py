@@ -12,13 +12,14 @@ metaimage  a MetaImage ``.mhd`` (header + raw file) or ``.mha`` (one file), raw 
 raw        headerless slices: a folder of files or one file, with ``raw=RawLayout(...)``
 npy        a 3-D NumPy ``.npy`` array ``[z, y, x]``
 tiff       a multi-page TIFF, one page a slice (spacing from ImageJ or OME metadata)
+masks      a folder of binary NIfTI or NRRD masks, one file per structure: one label map, named by the files
 nifti      NIfTI-1 or -2, ``.nii`` or ``.nii.gz`` (nibabel), scaled by scl_slope/scl_inter
 nrrd       NRRD, ``.nrrd`` or ``.nhdr`` with a detached data file (pynrrd), raw, gzip or bzip2
 ========== ==========================================================================
 
 ``voxrender.io._shared`` holds what they share: :class:`Volume`, :class:`Reader`, :class:`RawLayout`, the listing
 of folders and the filling of stacks.  A folder of NIfTI or NRRD files (a segmentation's one file per organ) is
-recognised and refused with what it holds.
+read as one label map (``masks``); the ``nifti`` and ``nrrd`` formats, named for a folder, refuse it.
 
 Every reader also returns, when its header says it, the volume's *direction* (see :mod:`voxrender.orient`);
 :func:`read_volume` then brings the volume to the canonical patient frame (LPS) by flips and permutations.
@@ -40,7 +41,7 @@ import numpy as np
 
 from .. import orient
 from ..errors import InputError
-from . import dicom, images, metaimage, nifti, npy, nrrd, raw, tiff
+from . import dicom, images, masks, metaimage, nifti, npy, nrrd, raw, tiff
 from ._shared import (
     RawLayout,
     Reader,
@@ -65,6 +66,7 @@ READERS = {
     "raw": raw.READER,
     "npy": npy.READER,
     "tiff": tiff.READER,
+    "masks": masks.READER,
     "nifti": nifti.READER,
     "nrrd": nrrd.READER,
 }

@@ -163,8 +163,9 @@ def folder_of_volumes(folder, kind, suffixes):
     files = [f for f in files_in(folder) if f.name.lower().endswith(suffixes)]
     if not files:
         return InputError(f"{folder} is a folder without {kind} files; give a {kind} file")
+    masks = ", or the folder as one label map of masks (format masks)" if kind in ("NIfTI", "NRRD") else ""
     return InputError(f"{folder} holds {len(files)} {kind} volume file{'s' * (len(files) > 1)} ({some_names(files)}), "
-                      "not slices; give one of them (a folder of label volumes is not read as one label map yet)")
+                      f"not slices; give one of them{masks}")
 
 
 def first_line(exc):
