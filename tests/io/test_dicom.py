@@ -263,3 +263,33 @@ def test_an_element_longer_than_its_file_is_bad_input_without_allocating_it(tmp_
                "try: io.read_volume(sys.argv[1])\nexcept InputError: print('bad input')")
     done = subprocess.run([sys.executable, "-c", limited, str(tmp_path)], capture_output=True, text=True)
     assert done.stdout.strip() == "bad input", done.stderr[-500:]
+
+
+def _non_image(path, sop_class, modality):
+    """A DICOM object that holds no slice (a structure set, a report), written by pydicom."""
+    from pydicom.dataset import FileDataset, FileMetaDataset
+    from pydicom.uid import ExplicitVRLittleEndian, generate_uid
+
+    meta = FileMetaDataset()
+    meta.MediaStorageSOPClassUID, meta.MediaStorageSOPInstanceUID = sop_class, generate_uid()
+    meta.TransferSyntaxUID = ExplicitVRLittleEndian
+    ds = FileDataset(str(path), {}, file_meta=meta, preamble=b"\0" * 128)
+    ds.SOPClassUID, ds.SOPInstanceUID, ds.Modality = sop_class, meta.MediaStorageSOPInstanceUID, modality
+    ds.SeriesInstanceUID = generate_uid()
+    ds.save_as(str(path), enforce_file_format=True)
+    return path
+
+
+def test_a_study_folder_with_a_structure_set_and_a_report_reads_its_slices(tmp_path):
+    """A CT folder as a planning system exports it: the RTSTRUCT (which has no Rows) ended in 'holds no image'."""
+    values = np.arange(4 * 5 * 6, dtype=np.int16).reshape(4, 5, 6)
+    write_series(tmp_path / "study", values)
+    rtstruct = _non_image(tmp_path / "study" / "rs.dcm", "1.2.840.10008.5.1.4.1.1.481.3", "RTSTRUCT")
+    _non_image(tmp_path / "study" / "sr.dcm", "1.2.840.10008.5.1.4.1.1.88.11", "SR")
+    volume = io.read_volume(tmp_path / "study")
+    assert volume.shape == (4, 5, 6) and volume.meta["segmentations"] == [str(rtstruct)]
+    assert volume.meta["frame_of_reference"] is not None
+    (tmp_path / "alone").mkdir()
+    rtstruct.rename(tmp_path / "alone" / "rs.dcm")
+    with pytest.raises(InputError, match="holds no image slices, only RTSTRUCT rs.dcm; a segmentation is shown on"):
+        io.read_volume(tmp_path / "alone")

@@ -19,6 +19,11 @@ from ..errors import InputError
 from ._shared import Reader, Volume, check_fits, check_spacing, fill_stack, first_line, natural_key, to_grey
 
 SUFFIXES = (".dcm", ".dicom", ".ima")
+# Objects a study folder holds beside its slices that are not slices: segmentations (read as the labels of their
+# image, by voxrender.io.seg and voxrender.io.rtstruct), structured reports, presentation states, plans.
+SEGMENTATIONS = {"1.2.840.10008.5.1.4.1.1.66.4": "SEG", "1.2.840.10008.5.1.4.1.1.66.7": "SEG (label map)",
+                 "1.2.840.10008.5.1.4.1.1.481.3": "RTSTRUCT"}
+NOT_IMAGES = ("SR", "PR", "KO", "RTPLAN", "RTRECORD", "REG", "DOC")
 # The header values that group, sort and place the slices.
 HEADER_KEYWORDS = ("Rows", "Columns", "Modality", "SOPClassUID", "SeriesInstanceUID", "SeriesDescription",
                    "FrameOfReferenceUID", "NumberOfFrames", "ImagePositionPatient", "ImageOrientationPatient",
@@ -87,7 +92,7 @@ def read_dicom(folder, progress, series=None):
     if not files:
         raise InputError(f"{folder} holds no DICOM files")
     damaged = damaged_file_errors()
-    headers = []
+    headers, aside = [], []
     for f in progress(files, len(files), "reading DICOM headers"):
         try:
             try:
@@ -100,12 +105,20 @@ def read_dicom(folder, progress, series=None):
                 ds.get(keyword)
         except damaged as exc:
             raise InputError(f"cannot read DICOM file {f}: {first_line(exc)}") from None
+        kind = SEGMENTATIONS.get(str(ds.get("SOPClassUID", "")))
+        if kind or str(ds.get("Modality", "")) in NOT_IMAGES:       # beside the slices, not one of them
+            aside.append((f, kind or str(ds.get("Modality"))))
+            continue
         missing = [key for key in ("Rows", "Columns") if key not in ds]
         if missing:
             kind = str(getattr(ds, "Modality", "") or getattr(ds, "SOPClassUID", "")) or "unknown"
             raise InputError(f"DICOM file {f} holds no image (no {', '.join(missing)}; modality or class: {kind}); "
                              "give a folder of image slices")
         headers.append((f, ds))
+    if not headers:
+        found = ", ".join(f"{kind} {f.name}" for f, kind in aside[:3]) + (" ..." if len(aside) > 3 else "")
+        raise InputError(f"{folder} holds no image slices, only {found}; a segmentation is shown on its image: "
+                         "give the image's series, with the segmentation as its labels", parameter="labels_from")
     groups = {}
     for f, ds in headers:
         groups.setdefault(str(getattr(ds, "SeriesInstanceUID", "(no SeriesInstanceUID)")), []).append((f, ds))
@@ -122,7 +135,9 @@ def read_dicom(folder, progress, series=None):
         if any(_frames(ds) > 1 for _, ds in chosen):
             if len(chosen) > 1:
                 raise InputError(f"the series in {folder} mixes multi-frame and single-frame files; keep one kind")
-            return _read_multiframe(chosen[0][0])
+            volume = _read_multiframe(chosen[0][0])
+            volume.meta.update(_beside(aside))
+            return volume
         chosen, spacing_z, sorted_by, direction = _sort_dicom(chosen)
         pixel = _pixel_spacing(chosen[0][1], chosen[0][0])
     except InputError:
@@ -158,6 +173,7 @@ def read_dicom(folder, progress, series=None):
     if _numbers(first.get("ImagePositionPatient")) is not None:
         meta["origin"] = _numbers(first.ImagePositionPatient)
     meta.update(_padding(first))
+    meta.update(_beside(aside))
     return Volume(values, check_spacing((pixel[1], pixel[0], spacing_z), folder), meta, direction)
 
 
@@ -337,6 +353,14 @@ def _read_multiframe(path):
     meta.setdefault("units", "stored values")
     meta.update(_padding(ds))
     return Volume(values, check_spacing((column_spacing, row_spacing, abs(spacing_z)), path), meta, direction)
+
+
+def _beside(aside):
+    """The segmentation files found beside the slices, ``{"segmentations": [path, ...]}`` (or nothing): the labels
+    that a folder given as its own labels holds.
+    """
+    found = [str(f) for f, kind in aside if kind in SEGMENTATIONS.values()]
+    return {"segmentations": found} if found else {}
 
 
 def _list_series(groups):
