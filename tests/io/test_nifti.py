@@ -81,7 +81,8 @@ def test_a_frame_of_a_3d_file_is_refused(tmp_path, name):
 
 
 def test_a_folder_of_nifti_files_says_what_it_holds(tmp_path):
-    """A segmentation's folder, one file per organ (TotalSegmentator's segmentations/), is not a stack of slices."""
+    """A segmentation's folder, one file per organ (TotalSegmentator's segmentations/), is not a stack of slices: as
+    NIfTI it is refused, pointing at the masks format."""
     import nibabel
 
     folder = tmp_path / "segmentations"
@@ -89,10 +90,11 @@ def test_a_folder_of_nifti_files_says_what_it_holds(tmp_path):
     for organ in ("spleen", "liver", "kidney_left", "stomach"):
         nibabel.save(nibabel.Nifti1Image(np.zeros((4, 4, 4), np.uint8), np.eye(4)), str(folder / f"{organ}.nii.gz"))
     (folder / "statistics.json").write_text("{}")
-    assert io.detect_format(folder) == "nifti"
+    assert io.detect_format(folder) == "masks"                    # read as one label map (tests/io/test_masks.py)
     with pytest.raises(InputError, match=r"segmentations holds 4 NIfTI volume files \(kidney_left.nii.gz, "
-                                         r"liver.nii.gz, spleen.nii.gz, ...\), not slices; give one of them"):
-        io.read_volume(folder)
+                                         r"liver.nii.gz, spleen.nii.gz, ...\), not slices; give one of them, or the "
+                                         r"folder as one label map of masks"):
+        io.read_volume(folder, format="nifti")
     (folder / "scan.raw").write_bytes(b"\0" * 64)          # something else beside them: not a folder of volumes
     assert not io.READERS["nifti"].sniff(folder)
 

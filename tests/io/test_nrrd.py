@@ -67,9 +67,10 @@ def test_a_folder_of_nrrd_files_says_what_it_holds(tmp_path):
 
     for name in ("liver", "spleen"):
         nrrd.write(str(tmp_path / f"{name}.seg.nrrd"), np.zeros((3, 4, 5), np.uint8))
-    assert io.detect_format(tmp_path) == "nrrd"
-    with pytest.raises(InputError, match=r"holds 2 NRRD volume files \(liver.seg.nrrd, spleen.seg.nrrd\), not slices"):
-        io.read_volume(tmp_path)
+    assert io.detect_format(tmp_path) == "masks"
+    with pytest.raises(InputError, match=r"holds 2 NRRD volume files \(liver.seg.nrrd, spleen.seg.nrrd\), not slices; "
+                                         r"give one of them, or the folder as one label map of masks"):
+        io.read_volume(tmp_path, format="nrrd")
 
 
 def test_raw_slices_beside_their_nrrd_header_are_not_a_folder_of_volumes(tmp_path):
