@@ -40,7 +40,8 @@ def head_labels(samples, data):
     target = Path(samples) / "head.seg.nrrd"
     if not target.is_file():
         volume = read_volume(Path(data) / "vhf_head")
-        write_nrrd(target, tissue_labels(volume.values), volume.spacing, segment_fields(TISSUES))
+        write_nrrd(target, tissue_labels(volume.values), volume.spacing, segment_fields(TISSUES),
+                   volume.meta["origin"])
 
 
 def render_case(name, output, samples, data=DATA):

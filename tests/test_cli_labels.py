@@ -4,6 +4,7 @@ import csv
 import json
 
 import imageio.v3 as iio
+import nibabel as nib
 import nrrd
 import numpy as np
 import pytest
@@ -139,14 +140,16 @@ def test_seg_nrrd_names_and_colours(tmp_path):
 def test_bad_label_inputs_end_in_one_line(tmp_path, label_file, ct_file):
     out = tmp_path / "out.png"
     fractional = write_nifti(tmp_path / "f.nii.gz", nested().astype(np.float32) * 0.5)
-    small = write_nifti(tmp_path / "small.nii.gz", nested()[:, :, :10])
+    far = tmp_path / "far.nii.gz"                                   # the label map of another patient position
+    nib.save(nib.Nifti1Image(nested().T, np.array([[-1, 0, 0, 0], [0, -1, 0, 0], [0, 0, 1, 500.0], [0, 0, 0, 1]])),
+             far)
     (tmp_path / "bad.csv").write_text("label,name,r,g,b\n2,ball,10,200,10\n3,box,red,0,0\n")
     cases = [
         (["render", fractional, "--labels"], ["error: " + str(fractional), "not a label map", "non-integer", "0.5"]),
         (["render", label_file, "--label", "9"], ["--label", "9", "holds 1, 2, 3"]),
         (["render", label_file, "--labels", "--colours", tmp_path / "bad.csv"], ["--colours", "row 3"]),
         (["render", ct_file, "--threshold", "900:100"], ["--threshold", "lo is above hi"]),
-        (["render", ct_file, "--labels-from", small], ["--labels-from", "shape"]),
+        (["render", ct_file, "--labels-from", far], ["--labels-from", "does not overlap the image", "z 499.5 to"]),
         (["render", ct_file, "--preset", "liver"], ["--preset", "unknown preset", "bone"]),
         (["render", ct_file, "--preset", "bone", "--threshold", "300"], ["--preset", "not both"]),
         (["render", label_file, "--labels", "--threshold", "2"], ["--threshold", "selected by its labels"]),
@@ -262,3 +265,35 @@ def test_classify_takes_the_last_window_that_holds_a_value():
     values = np.array([[[-1000, -200, 100, 400, 2000]]], np.int16)
     labels, _ = classify(Volume(values, (1, 1, 1)), [Window(-300), Window(300, 1000)])
     assert labels.tolist() == [[[0, 1, 1, 2, 1]]]
+
+
+def test_a_label_map_on_another_grid_is_placed_by_patient_position(tmp_path, ct_file, label_file):
+    """Was refused for its shape (or, of the same shape, given the CT's spacing unchecked): the map is resampled by
+    the two voxel-to-patient affines, here stored in another orientation (axes permuted and flipped) at the same
+    positions, and then on a grid shifted by one voxel."""
+    from formats import stored
+
+    from voxrender import orient
+
+    values, spacing, direction = stored(nested(), "SAL", spacing=(1.0, 1.0, 1.0))
+    lps = np.eye(4)
+    lps[:3, :3] = direction * spacing
+    lps[:3, 3] = -lps[:3, :3] @ orient.canonical_corner(values.shape, direction)   # canonical (0, 0, 0) at 0 mm
+    nib.save(nib.Nifti1Image(values.T, np.diag([-1.0, -1.0, 1.0, 1.0]) @ lps), tmp_path / "sal.nii")
+    shifted = np.diag([-1.0, -1.0, 1.0, 1.0])
+    shifted[:3, 3] = [-1.0, 0, 0]                            # one voxel toward the patient's left (RAS -x)
+    nib.save(nib.Nifti1Image(nested()[:, :, :-1].T, shifted), tmp_path / "shifted.nii")
+
+    def label_image(map_path, name):
+        result = run("render", ct_file, "--labels-from", map_path, "--size", "48", "--scale", "1.5", "--label-png",
+                     tmp_path / f"{name}.png", "-o", tmp_path / f"{name}-rgb.png")
+        assert result.exit_code == 0, result.output
+        return iio.imread(tmp_path / f"{name}.png")
+
+    reference = label_image(label_file, "reference")
+    np.testing.assert_array_equal(label_image(tmp_path / "sal.nii", "sal"), reference)
+    on_grid = np.zeros_like(nested())
+    on_grid[:, :, 1:] = nested()[:, :, :-1]                  # the shifted map, as it lies on the CT's grid
+    expected = label_image(write_nifti(tmp_path / "on-grid.nii", on_grid), "on-grid")
+    np.testing.assert_array_equal(label_image(tmp_path / "shifted.nii", "shifted"), expected)
+    assert np.count_nonzero(expected != reference) > 10

@@ -180,9 +180,10 @@ def write_slices(values, folder):
     return folder
 
 
-def write_nifti(path, values, spacing=(1.0, 1.0, 1.0)):
+def write_nifti(path, values, spacing=(1.0, 1.0, 1.0), origin=(0.0, 0.0, 0.0)):
     """Write ``values[z, y, x]``, in the canonical frame (x toward L, y toward P, z toward S), as NIfTI (gzipped
-    when ``path`` ends in ``.gz``) with its sform, atomically.
+    when ``path`` ends in ``.gz``) with its sform, atomically; ``origin`` is the patient position (LPS, mm) of
+    ``values[0, 0, 0]`` (a volume's ``meta["origin"]``), so that a label map written of an image pairs with it.
 
     >>> import tempfile
     >>> path = write_nifti(Path(tempfile.mkdtemp()) / "v.nii.gz", np.zeros((2, 3, 4), np.int16), (1, 1, 2))
@@ -195,20 +196,22 @@ def write_nifti(path, values, spacing=(1.0, 1.0, 1.0)):
     import nibabel
 
     affine = np.diag([-float(spacing[0]), -float(spacing[1]), float(spacing[2]), 1.0])   # LPS voxels, RAS world
+    affine[:3, 3] = np.asarray(origin, float) * [-1, -1, 1]
     data = nibabel.Nifti1Image(np.transpose(values, (2, 1, 0)), affine).to_bytes()
     with atomic_output(path) as tmp:
         tmp.write_bytes(gzip.compress(data, 6) if str(path).endswith(".gz") else data)
     return Path(path)
 
 
-def write_nrrd(path, values, spacing=(1.0, 1.0, 1.0), fields=None):
+def write_nrrd(path, values, spacing=(1.0, 1.0, 1.0), fields=None, origin=(0.0, 0.0, 0.0)):
     """Write ``values[z, y, x]``, in the canonical frame, as a gzip-encoded NRRD in LPS space, atomically;
-    ``fields`` adds header fields (e.g. a ``.seg.nrrd``'s ``Segment0_Name``).
+    ``fields`` adds header fields (e.g. a ``.seg.nrrd``'s ``Segment0_Name``), ``origin`` is as for
+    :func:`write_nifti`.
     """
     import nrrd
 
     header = {"space": "left-posterior-superior", "space directions": np.diag([float(v) for v in spacing]),
-              "space origin": [0.0, 0.0, 0.0], "encoding": "gzip", **(fields or {})}
+              "space origin": [float(v) for v in origin], "encoding": "gzip", **(fields or {})}
     with atomic_output(path) as tmp:
         nrrd.write(str(tmp), np.ascontiguousarray(values), header, index_order="C")
     return Path(path)

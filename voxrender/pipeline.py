@@ -214,10 +214,7 @@ def _encode_labels(volume, read, prepare, meta, progress):
         raise InputError("a label map is selected by its labels, not by a threshold: drop it, or give the label map "
                          "as the labels of the image it was made from", parameter="threshold")
     if selection.source is not None:
-        if label_volume.shape != volume.shape:
-            raise InputError(f"the label map {label_name} has shape {label_volume.shape[::-1]} (x, y, z) but "
-                             f"the image has {volume.shape[::-1]}; give the label map made from this image",
-                             parameter="labels_from")
+        label_volume = replace(label_volume, values=_on_image_grid(label_volume, volume, label_name))
         meta["label_source"] = str(label_name)
     # the label map lies on the image's grid: resample both with the image's spacing
     labels, info = prep.label_map(replace(label_volume, spacing=volume.spacing), selection, crop=prepare.crop,
@@ -249,6 +246,25 @@ def _encode_labels(volume, read, prepare, meta, progress):
         encoded = segments.encode(labels > 0, info["spacing"], meta)
     encoded.normals = surface_normals(labels > 0)
     return encoded
+
+
+def _on_image_grid(label_volume, volume, label_name):
+    """The label map's values on the image's grid: placed by patient position (:func:`voxrender.grids.pair`) when
+    both say where they lie; taken as they are when one does not (an array, a ``.npy``, headerless slices) and
+    the shapes agree.
+    """
+    from .grids import pair
+
+    placed = [v.direction is not None and "origin" in v.meta for v in (label_volume, volume)]
+    if all(placed):
+        return pair(label_volume, volume, f"the label map {label_name}")
+    if label_volume.shape != volume.shape:
+        unplaced = "the label map" if not placed[0] else "the image"
+        raise InputError(f"the label map {label_name} has shape {label_volume.shape[::-1]} (x, y, z) but the image "
+                         f"has {volume.shape[::-1]}, and {unplaced} does not say where it lies in the patient, so "
+                         "they cannot be paired by position; give the label map made from this image",
+                         parameter="labels_from")
+    return label_volume.values
 
 
 def _grey_normals(volume, mask, info, prepare):
