@@ -297,3 +297,33 @@ def test_a_label_map_on_another_grid_is_placed_by_patient_position(tmp_path, ct_
     expected = label_image(write_nifti(tmp_path / "on-grid.nii", on_grid), "on-grid")
     np.testing.assert_array_equal(label_image(tmp_path / "shifted.nii", "shifted"), expected)
     assert np.count_nonzero(expected != reference) > 10
+
+
+def test_info_of_an_image_and_its_label_map_tells_both_grids_and_how_they_relate(tmp_path, ct_file):
+    coarse = np.diag([-2.0, -2.0, 2.0, 1.0])
+    coarse[:3, 3] = [-1.0, 0.0, 3.0]                         # RAS: 1 mm toward L, 3 mm toward S
+    nib.save(nib.Nifti1Image(nested()[::2, ::2, ::2].T.copy(), coarse), tmp_path / "coarse.nii.gz")
+    result = run("info", ct_file, "--labels-from", tmp_path / "coarse.nii.gz", "--json")
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.stdout)
+    assert summary["grids"][0].startswith("label map grid: ") and summary["grids"][1].startswith("image grid: ")
+    assert summary["grids"][2].startswith("relation: shifted by") and "2x coarser" in summary["grids"][2]
+    assert set(summary["labels"]) == {"1", "2", "3"} and all(v["voxels"] > 0 for v in summary["labels"].values())
+    text = run("info", ct_file, "--labels-from", tmp_path / "coarse.nii.gz").stdout
+    assert "\n  relation: shifted by" in text and "\nlabels: 3\n  1 label 1: " in text
+
+
+def test_info_of_a_mask_folder_lists_empty_masks_and_overlaps(tmp_path):
+    folder = tmp_path / "segmentations"
+    folder.mkdir()
+    liver, spleen = np.zeros((2, 8, 10, 12), np.uint8)
+    liver[2:6, 2:6, 2:8] = 1
+    spleen[2:6, 2:6, 6:10] = 1                               # 4 x 4 x 2 voxels in both
+    for name, mask in (("liver", liver), ("spleen", spleen), ("kidney_left", np.zeros_like(liver))):
+        write_nifti(folder / f"{name}.nii.gz", mask)
+    summary = json.loads(run("info", folder, "--labels", "--json").stdout)
+    assert {v["name"]: v["voxels"] for v in summary["labels"].values()} == {"kidney_left": 0, "liver": 96,
+                                                                           "spleen": 32}
+    assert summary["overlaps"] == [{"labels": [2, 3], "names": ["liver", "spleen"], "voxels": 32}]
+    text = run("info", folder, "--labels").stdout
+    assert "  1 kidney_left: 0 voxels, 0 mL" in text and "  liver and spleen: 32 voxels" in text

@@ -399,7 +399,21 @@ def info_command(input_path, as_json, **options):
         click.echo(json.dumps(summary, indent=2, default=float))
         return
     for key, value in summary.items():
-        click.echo(f"{key.replace('_', ' ')}: {value}")
+        if key == "labels":                                    # a line a label, the number a reader compares first
+            click.echo(f"labels: {len(value)}")
+            for label, row in value.items():
+                click.echo(f"  {label} {row['name']}: {row['voxels']} voxels, {row['ml']:g} mL")
+        elif key == "overlaps":
+            click.echo(f"overlaps: {len(value)} pair{'s' * (len(value) > 1)} of labels (a voxel in both goes to "
+                       "the first-numbered)")
+            for pair in value:
+                click.echo(f"  {' and '.join(pair['names'])}: {pair['voxels']} voxels")
+        elif isinstance(value, list) and value and all(isinstance(v, str) for v in value):
+            click.echo(f"{key.replace('_', ' ')}:")
+            for line in value:
+                click.echo(f"  {line}")
+        else:
+            click.echo(f"{key.replace('_', ' ')}: {value}")
 
 
 def _describe(path, volume, prepare):
@@ -427,11 +441,14 @@ def _describe(path, volume, prepare):
     if volume.meta.get("units") == "HU":                  # the tissue windows of a CT
         summary["suggested_presets"] = {name: str(colours.PRESETS[name].window) for name in ("skin", "bone")}
     for key in ("modality", "series", "description", "sorted_by", "orientation", "orientation_from", "affine",
-                "reoriented"):
+                "reoriented", "masks_reoriented"):
         if volume.meta.get(key):
             summary[key] = volume.meta[key]
     if prepare.labels is not None and prepare.labels.source is None:       # a label map: its labels
         summary.update(_describe_labels(volume, values, path))
+        return summary
+    if prepare.labels is not None:                                         # an image and its label map
+        summary.update(_describe_pairing(volume, prepare.labels.source, prepare.crop))
         return summary
     threshold = suggested if callable(prepare.threshold) or prepare.threshold is None else prepare.threshold
     mask, info = prep.binarize(volume, threshold, crop=prepare.crop, voxel=prepare.voxel,
@@ -460,6 +477,20 @@ def _describe_labels(volume, values, source):
     if volume.meta.get("overlaps"):
         summary["overlaps"] = volume.meta["overlaps"]
     return summary
+
+
+def _describe_pairing(volume, source, crop):
+    """An image's label map: both grids and how they relate, and its labels as they fall on the image's grid."""
+    from .grids import relate
+    from .pipeline import on_image_grid, read_labels
+
+    labels = read_labels(source, volume)
+    relation = relate(labels.shape, io.patient_affine(labels), volume.shape, io.patient_affine(volume))
+    lines = relation.lines("label map", "image", labels.meta.get("orientation"), volume.meta.get("orientation"))
+    paired = replace(volume, values=on_image_grid(labels, volume, source),
+                     meta={**labels.meta, "source": str(source)})
+    return {"label_map": str(source), "grids": lines,
+            **_describe_labels(paired, prep.crop(paired.values, crop), source)}
 
 
 class _BatchBar:

@@ -206,15 +206,12 @@ def _encode_labels(volume, read, prepare, meta, progress):
         label_name = label_volume.meta.get("source", "the label array")
     elif selection.source is not None:
         label_name = selection.source
-        try:
-            label_volume = replace(read, format="auto", frame=None).read(selection.source)
-        except InputError as exc:
-            raise InputError(f"the label map: {exc.message}", parameter="labels_from") from None
+        label_volume = read_labels(selection.source, volume, read)
     elif prepare.threshold is not None:
         raise InputError("a label map is selected by its labels, not by a threshold: drop it, or give the label map "
                          "as the labels of the image it was made from", parameter="threshold")
     if selection.source is not None:
-        label_volume = replace(label_volume, values=_on_image_grid(label_volume, volume, label_name))
+        label_volume = replace(label_volume, values=on_image_grid(label_volume, volume, label_name))
         meta["label_source"] = str(label_name)
     # the label map lies on the image's grid: resample both with the image's spacing
     labels, info = prep.label_map(replace(label_volume, spacing=volume.spacing), selection, crop=prepare.crop,
@@ -248,7 +245,17 @@ def _encode_labels(volume, read, prepare, meta, progress):
     return encoded
 
 
-def _on_image_grid(label_volume, volume, label_name):
+def read_labels(source, image, read=None):
+    """The label map that ``source`` (a path: a label map, a folder of masks) holds for ``image``, on its own grid
+    (:func:`on_image_grid` places it on the image's); its errors name the label map.
+    """
+    try:
+        return replace(read or ReadOptions(), format="auto", frame=None).read(source)
+    except InputError as exc:
+        raise InputError(f"the label map: {exc.message}", parameter="labels_from") from None
+
+
+def on_image_grid(label_volume, volume, label_name):
     """The label map's values on the image's grid: placed by patient position (:func:`voxrender.grids.pair`) when
     both say where they lie; taken as they are when one does not (an array, a ``.npy``, headerless slices) and
     the shapes agree.
