@@ -51,7 +51,7 @@ golden: $(VENV)/.installed
 mutants: $(VENV)/.installed
 	$(BIN)/python tests/mutants.py
 
-# The fuzzing gate: 2016 damaged files of every format, each rendered in a subprocess with a memory and a time limit;
+# The fuzzing gate: 84 damaged files of each format read, each rendered in a subprocess with a memory and a time limit;
 # fails if any ends otherwise than in a picture or one error line, and keeps those cases under tests/fuzz_cases.
 fuzz: $(VENV)/.installed
 	$(BIN)/python -m tests.fuzz

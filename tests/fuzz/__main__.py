@@ -9,14 +9,15 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+from .cases import FORMATS
 from .run import GOOD, KEPT, run_case
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m tests.fuzz", description=__doc__)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--cases", type=int, default=2016,
-                        help="how many cases (default 2016: 84 of each of the 24 formats)")
+    parser.add_argument("--cases", type=int, default=84 * len(FORMATS),
+                        help=f"how many cases (default {84 * len(FORMATS)}: 84 of each of the {len(FORMATS)} formats)")
     parser.add_argument("--first", type=int, default=0, help="the number of the first case (default 0)")
     parser.add_argument("--jobs", type=int, default=2, help="cases run at once (default 2)")
     parser.add_argument("--keep", type=Path, default=KEPT, help=f"where misbehaving cases go (default {KEPT})")

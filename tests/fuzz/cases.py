@@ -529,6 +529,36 @@ def _nifti_header(rng, seed):
     return nifti_header_mutation(rng, seed.files[0])
 
 
+def _multilabel_header(rng, seed):
+    """The label table of a TotalSegmentator ``--ml`` file replaced by a damaged one (or the voxels' header)."""
+    if rng.random() < 0.4:
+        return nifti_header_mutation(rng, seed.files[0])
+    tables = {
+        "cut": b'<?xml version="1.0"?><CaretExtension><LabelTable><Label Key="1"><![CDATA[liv',
+        "key abc": b'<LabelTable><Label Key="abc">liver</Label></LabelTable>',
+        "key huge": b'<LabelTable><Label Key="99999999999999999999">liver</Label></LabelTable>',
+        "key negative": b'<LabelTable><Label Key="-4">liver</Label></LabelTable>',
+        "no key": b'<LabelTable><Label>liver</Label></LabelTable>',
+        "no name": b'<LabelTable><Label Key="1"></Label></LabelTable>',
+        "entities": b'<?xml version="1.0"?><!DOCTYPE t [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;&a;&a;'
+                    b'&a;&a;&a;&a;"><!ENTITY c "&b;&b;&b;&b;&b;&b;&b;&b;&b;&b;">]><LabelTable><Label Key="1">&c;'
+                    b"</Label></LabelTable>",
+        "not utf-8": b'<LabelTable><Label Key="1">\xff\xfe liver</Label></LabelTable>',
+        "workbench colours": b'<LabelTable><Label Key="1" Red="7" Green="nan" Blue="-1">liver</Label></LabelTable>',
+        "many labels": b"<LabelTable>" + b"".join(b'<Label Key="%d">s%d</Label>' % (k, k) for k in range(1, 3000))
+                       + b"</LabelTable>",
+    }
+    what = rng.choice(sorted(tables))
+    path = seed.files[0]
+    image = nibabel.load(str(path))
+    header = image.header.copy()
+    header.extensions.clear()
+    code = 30 if what == "workbench colours" else 0
+    header.extensions.append(nibabel.nifti1.Nifti1Extension(code, tables[what]))
+    nibabel.save(nibabel.Nifti1Image(np.asanyarray(image.dataobj), image.affine, header), str(path))
+    return f"label table {what}"
+
+
 def _nrrd_header(rng, seed):
     return text_header_mutation(rng, seed.files[0], NRRD_FIELDS, ": ")
 
@@ -619,6 +649,8 @@ FORMATS = {
     "nhdr": Format(seeds.nrrd_detached, _nrrd_header),
     "nrrd-4d": Format(seeds.nrrd_4d, _nrrd_header),
     "seg-nrrd": Format(seeds.seg_nrrd, _nrrd_header),
+    "nifti-ml": Format(seeds.nifti_multilabel, _multilabel_header, gzip=True),
+    "masks": Format(seeds.mask_folder, _nifti_header, gzip=True),
     "mha": Format(seeds.metaimage_local, _metaimage_header),
     "mhd": Format(seeds.metaimage_detached, _metaimage_header),
     "dicom": Format(seeds.dicom_series, _series_header),

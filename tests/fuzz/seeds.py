@@ -100,8 +100,7 @@ def nrrd_4d(case, values, spacing=SPACING, direction=None):
 
 def seg_nrrd(case, values, spacing=SPACING, direction=None):
     """A 3D Slicer segmentation: two labels, their names and colours; ``--labels``."""
-    labels = (values > values.min()).astype(np.uint8)
-    labels[: len(labels) // 2] *= 2
+    labels = _two_labels(values)
     path = case / INPUT / "x.seg.nrrd"
     segments = {}
     for k, (name, colour) in enumerate((("skin", "0.9 0.7 0.6"), ("bone", "1 1 0.9"))):
@@ -109,6 +108,42 @@ def seg_nrrd(case, values, spacing=SPACING, direction=None):
                          f"Segment{k}_Color": colour, f"Segment{k}_LabelValue": str(k + 1),
                          f"Segment{k}_Layer": "0"})
     write_nrrd(path, labels, spacing, _direction(direction), encoding="gzip", **segments)
+    return Seed(f"{INPUT}/{path.name}", ["--labels"], [path])
+
+
+def _two_labels(values):
+    """Two labels of the values: the upper half of the object 1, the lower half 2."""
+    labels = (values > values.min()).astype(np.uint8)
+    labels[: len(labels) // 2] *= 2
+    return labels
+
+
+def mask_folder(case, values, spacing=SPACING, direction=None):
+    """A TotalSegmentator-like folder of binary masks (one ``.nii.gz`` per structure, one of them empty), the
+    first in the list the one a mutation damages; ``--labels``."""
+    labels = _two_labels(values)
+    folder = case / INPUT / "segmentations"
+    folder.mkdir(parents=True)
+    paths = []
+    for name, mask in (("liver", labels == 1), ("spleen", labels == 2), ("kidney_left", np.zeros_like(labels))):
+        paths.append(folder / f"{name}.nii.gz")
+        write_nifti(paths[-1], mask.astype(np.uint8), spacing, _direction(direction))
+    return Seed(f"{INPUT}/segmentations", ["--labels"], paths)
+
+
+def nifti_multilabel(case, values, spacing=SPACING, direction=None):
+    """TotalSegmentator's ``--ml`` output: a label map whose names are in a Caret XML header extension, written
+    as TotalSegmentator's ``add_label_map_to_nifti`` writes it; ``--labels``."""
+    path = case / INPUT / "x.nii.gz"
+    write_nifti(path, _two_labels(values), spacing, _direction(direction))
+    image = nibabel.load(str(path))
+    body = "".join(f'<Label Key="{key}" Red="0.0" Green="1.0" Blue="0.0" Alpha="1"><![CDATA[{name}]]></Label>\n'
+                   for key, name in ((1, "liver"), (2, "vertebrae_L1")))
+    xml = ('<?xml version="1.0" encoding="UTF-8"?> <CaretExtension>  <VolumeInformation Index="0">   <LabelTable>\n'
+           f"{body}\n  </LabelTable>  <VolumeType><![CDATA[Label]]></VolumeType>   </VolumeInformation>"
+           "</CaretExtension>\n")
+    image.header.extensions.append(nibabel.nifti1.Nifti1Extension(0, xml.encode()))
+    nibabel.save(nibabel.Nifti1Image(np.asanyarray(image.dataobj), image.affine, image.header), str(path))
     return Seed(f"{INPUT}/{path.name}", ["--labels"], [path])
 
 
