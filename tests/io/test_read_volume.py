@@ -176,3 +176,13 @@ def test_voxels_become_real_numbers_the_renderers_take(tmp_path):
     assert half.dtype == np.float32 and np.all(half == 0.5)
     with pytest.raises(InputError, match="complex.nii holds complex64 values; voxrender needs real numbers"):
         io.read_volume(tmp_path / "complex.nii")
+
+
+def test_sizes_that_round_alike_are_given_in_bytes():
+    """Found auditing the fuzzing gate's lines: 'holds 15.8 kB of voxels, more than the 15.8 kB its header promises'."""
+    from voxrender.io._shared import check_holds
+
+    with pytest.raises(InputError, match="holds 15841 bytes of voxels, more than the 15840 bytes its header promises"):
+        check_holds("x.nrrd", 15840, 15841, exact=True)
+    with pytest.raises(InputError, match="holds 9.29 kB of voxels, of the 15.8 kB its header promises"):
+        check_holds("x.nii", 15840, 9290)

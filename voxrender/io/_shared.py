@@ -339,12 +339,16 @@ def check_holds(source, promised, held, what="voxels", exact=False):
     """Refuse a file that holds fewer bytes of ``what`` than its header promises (or, ``exact``, other than it
     promises), with both numbers.
     """
+    held = max(held, 0)
+    words = (in_words(held), in_words(promised))
+    if words[0] == words[1]:                      # "15.8 kB of the 15.8 kB" would say nothing: the bytes, then
+        words = (f"{held} bytes", f"{promised} bytes")
     if held < promised:
-        raise InputError(f"{source} holds {in_words(max(held, 0))} of {what}, of the {in_words(promised)} its header "
-                         "promises; the file is cut short or its header is damaged")
+        raise InputError(f"{source} holds {words[0]} of {what}, of the {words[1]} its header promises; the file is "
+                         "cut short or its header is damaged")
     if exact and held > promised:
-        raise InputError(f"{source} holds {in_words(held)} of {what}, more than the {in_words(promised)} its header "
-                         "promises; the header is damaged")
+        raise InputError(f"{source} holds {words[0]} of {what}, more than the {words[1]} its header promises; the "
+                         "header is damaged")
 
 
 def inflate(stream, codec, promised, source):
