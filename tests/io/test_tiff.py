@@ -98,3 +98,20 @@ def test_a_first_page_of_no_known_type_is_bad_input(tmp_path):
     (tmp_path / "v.tif").write_bytes(bytes(whole))
     with pytest.raises(InputError, match="v.tif"):
         io.read_volume(tmp_path / "v.tif")
+
+
+def test_a_stack_written_page_by_page_is_a_stack_and_a_cut_one_is_cut(tmp_path):
+    """tifffile writes each page of a page-by-page stack as a series of its own: it read as 'a single 2-D image'.
+    An ImageJ stack cut after its first page read as one too; it is cut short, and says so."""
+    import tifffile
+
+    values = (np.arange(10 * 20 * 20) % 1000).astype(np.uint16).reshape(10, 20, 20)
+    with tifffile.TiffWriter(tmp_path / "pages.tif") as writer:
+        for page in values:
+            writer.write(page, contiguous=False)
+    np.testing.assert_array_equal(io.read_volume(tmp_path / "pages.tif", reorient=False).values, values)
+    tifffile.imwrite(tmp_path / "imagej.tif", values, imagej=True)
+    whole = (tmp_path / "imagej.tif").read_bytes()
+    (tmp_path / "cut.tif").write_bytes(whole[:len(whole) // 2])
+    with pytest.raises(InputError, match="cut.tif is cut short or damaged: its list of pages breaks off after 1 page"):
+        io.read_volume(tmp_path / "cut.tif")

@@ -177,15 +177,24 @@ def first_line(exc):
 @contextlib.contextmanager
 def quiet_log(name):
     """Keep the log of library ``name`` quiet while it reads: it logs what it mends or skips in a damaged file,
-    which the reader's one error line (or the volume) says well enough.
+    which the reader's one error line (or the volume) says well enough.  Yields the list of what it logged (its
+    warnings and errors), for a reader that must know what was skipped.
     """
     logger = logging.getLogger(name)
-    level = logger.level
-    logger.setLevel(logging.CRITICAL + 1)
+    logged = []
+
+    class Keep(logging.Handler):
+        def emit(self, record):
+            logged.append(record.getMessage())
+
+    keep, propagate = Keep(logging.WARNING), logger.propagate
+    logger.addHandler(keep)
+    logger.propagate = False
     try:
-        yield
+        yield logged
     finally:
-        logger.setLevel(level)
+        logger.removeHandler(keep)
+        logger.propagate = propagate
 
 
 def to_grey(image, name):

@@ -14,26 +14,39 @@ SUFFIXES = (".tif", ".tiff")
 
 
 def read_tiff(path, progress):
-    """Read the pages of a TIFF as slices (colour pages become grey)."""
-    import imageio.v3 as iio
+    """Read the pages of a TIFF as slices (colour pages become grey).
+
+    The slices are tifffile's first series (ImageJ's and tifffile's own stacks, OME's), or, when that series is one
+    page, every page of the file of that page's shape and type: a stack written page by page is a series a page.
+    A file whose list of pages breaks off before the pages it promised is cut short, not a shorter stack.
+    """
     import tifffile
 
     try:
-        with quiet_log("tifffile"), tifffile.TiffFile(path) as tif:    # what imageio allocates: the first series
+        with quiet_log("tifffile") as logged, tifffile.TiffFile(path) as tif:
             series = tif.series[0]
-            check_fits(series.shape, series.dtype, path)
+            first = tif.pages.first
+            pages = len(tif.pages)
+            broken = next((line for line in logged if "invalid page offset" in line), None)
+            shape, read = series.shape, series.asarray
+            if len(tif.series) > 1 and series.ndim - (first.samplesperpixel > 1) == 2:     # a series a page
+                alike = [k for k, page in enumerate(tif.pages)
+                         if page.shape == first.shape and page.dtype == first.dtype]
+                shape = (len(alike), *first.shape)
+                read = lambda: tif.asarray(key=alike)                                   # noqa: E731
+            check_fits(shape, series.dtype, path)
+            values = read()
     except InputError:
         raise
     except (*damaged_file_errors(), IndexError) as exc:          # IndexError: a file of no series
         raise InputError(f"cannot read TIFF {path}: {first_line(exc)}") from None
-    except (ZeroDivisionError, AssertionError):      # tifffile's series detection (imageio's read below runs it
-        # too) dividing by a page of size zero, or asserting that its pages agree
+    except (ZeroDivisionError, AssertionError):      # tifffile's series detection dividing by a page of size zero,
+        # or asserting that its pages agree
         raise InputError(f"cannot read TIFF {path}: its page shapes or series description are damaged") from None
-    try:
-        with quiet_log("tifffile"):
-            values = iio.imread(path, index=None)
-    except damaged_file_errors() as exc:
-        raise InputError(f"cannot read TIFF {path}: {first_line(exc)}") from None
+    promised = series.shape[0] if (tif.is_shaped or tif.is_imagej) and series.ndim > 2 else None
+    if broken and (values.ndim == 2 or promised is None or len(values) < promised):   # pages past the break lost
+        raise InputError(f"{path} is cut short or damaged: its list of pages breaks off after {pages} "
+                         f"page{'s' * (pages > 1)} ({broken.split('> ')[-1]})")
     if values.ndim == 2:
         raise InputError(f"{path} is a single 2-D image; give a multi-page TIFF or a folder of slices")
     if values.ndim == 4 and values.shape[-1] in (3, 4):
