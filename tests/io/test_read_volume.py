@@ -114,7 +114,7 @@ def info(path, options):
 
 
 # Each reader's call into its library (or, for MetaImage, which has none, its own header parser).
-LIBRARY_CALLS = {"images": "imageio.v3.imread", "tiff": "imageio.v3.imread", "dicom": "pydicom.dcmread",
+LIBRARY_CALLS = {"images": "imageio.v3.imread", "tiff": "tifffile.TiffPageSeries.asarray", "dicom": "pydicom.dcmread",
                  "nifti": "nibabel.load", "nrrd": "nrrd.read_header", "npy": "numpy.load", "raw": "numpy.fromfile",
                  "metaimage": "voxrender.io.metaimage._metaimage_direction"}
 

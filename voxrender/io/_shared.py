@@ -10,6 +10,7 @@ import logging
 import math
 import os
 import re
+import threading
 import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -174,28 +175,50 @@ def first_line(exc):
     return (text[0] if text else type(exc).__name__)[:200]
 
 
+class _Kept(logging.Handler):
+    """Takes a quieted library's log in place of its own handlers: each record goes to the innermost list of the
+    thread that logged it (readers run on threads: the masks of a folder, two at a time).
+    """
+
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.lists, self.depth, self.saved = {}, 0, None
+
+    def emit(self, record):
+        lists = self.lists.get(record.thread)
+        if lists:
+            lists[-1].append(record.getMessage())
+
+
+_QUIET_LOCK = threading.Lock()
+_QUIETED = {}
+
+
 @contextlib.contextmanager
 def quiet_log(name):
     """Keep the log of library ``name`` quiet while it reads: it logs what it mends or skips in a damaged file,
     which the reader's one error line (or the volume) says well enough.  Yields the list of what it logged (its
-    warnings and errors), for a reader that must know what was skipped.
+    warnings and errors) in this thread, for a reader that must know what was skipped.
     """
-    logger = logging.getLogger(name)
-    logged = []
-
-    class Keep(logging.Handler):
-        def emit(self, record):
-            logged.append(record.getMessage())
-
-    keep, propagate = Keep(logging.WARNING), logger.propagate
-    logger.addHandler(keep)
-    logger.propagate = False
+    logger, logged, thread = logging.getLogger(name), [], threading.get_ident()
+    with _QUIET_LOCK:
+        kept = _QUIETED.setdefault(name, _Kept())
+        if not kept.depth:                        # the first reader in: the library's own handlers step aside
+            kept.saved = (logger.handlers[:], logger.propagate)
+            logger.handlers[:] = [kept]
+            logger.propagate = False
+        kept.depth += 1
+        kept.lists.setdefault(thread, []).append(logged)
     try:
         yield logged
     finally:
-        logger.removeHandler(keep)
-        logger.propagate = propagate
-
+        with _QUIET_LOCK:
+            kept.lists[thread].pop()
+            if not kept.lists[thread]:
+                del kept.lists[thread]
+            kept.depth -= 1
+            if not kept.depth:                    # the last one out: they come back
+                logger.handlers[:], logger.propagate = kept.saved
 
 def to_grey(image, name):
     """A 2-D slice from an image file; colour images become luminance in their own units."""

@@ -24,7 +24,7 @@ def read_tiff(path, progress):
 
     try:
         with quiet_log("tifffile") as logged, tifffile.TiffFile(path) as tif:
-            series = tif.series[0]
+            series = _first_series(tif, path)
             first = tif.pages.first
             pages = len(tif.pages)
             broken = next((line for line in logged if "invalid page offset" in line), None)
@@ -40,9 +40,6 @@ def read_tiff(path, progress):
         raise
     except (*damaged_file_errors(), IndexError) as exc:          # IndexError: a file of no series
         raise InputError(f"cannot read TIFF {path}: {first_line(exc)}") from None
-    except (ZeroDivisionError, AssertionError):      # tifffile's series detection dividing by a page of size zero,
-        # or asserting that its pages agree
-        raise InputError(f"cannot read TIFF {path}: its page shapes or series description are damaged") from None
     promised = series.shape[0] if (tif.is_shaped or tif.is_imagej) and series.ndim > 2 else None
     if broken and (values.ndim == 2 or promised is None or len(values) < promised):   # pages past the break lost
         raise InputError(f"{path} is cut short or damaged: its list of pages breaks off after {pages} "
@@ -53,6 +50,16 @@ def read_tiff(path, progress):
         values = np.stack([to_grey(page, path.name) for page in values])
     spacing, spacing_from = _tiff_spacing(path)
     return Volume(values, spacing, {"spacing_from": spacing_from})
+
+
+def _first_series(tif, path):
+    """The first series tifffile finds in an open file; its detection dividing by a page of size zero, or asserting
+    that pages agree, is a damaged file.
+    """
+    try:
+        return tif.series[0]
+    except (ZeroDivisionError, AssertionError):
+        raise InputError(f"cannot read TIFF {path}: its page shapes or series description are damaged") from None
 
 
 def _tiff_spacing(path):
