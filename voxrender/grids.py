@@ -153,7 +153,7 @@ class GridRelation:
         how += _scale_words(self, target_name) + _axes_words(self, target_name)
         parts = [", ".join(how) or "the same voxels"]
         if self.extent_gap_mm > 1e-3:
-            parts.append(f"extents differ by {self.extent_gap_mm:.1f} mm")
+            parts.append(f"extents differ by {_mm(self.extent_gap_mm)} mm")
         parts.append(f"{_percent(self.overlap)} % of it inside the {target_name}")
         return [*lines, "relation: " + "; ".join(parts)]
 
@@ -249,7 +249,7 @@ def pair(label_volume, image_volume, label_name="the label map", *, image_name="
                          "from this image", parameter=parameter)
     voxel = max(relation.target_voxel_mm)
     if relation.extent_gap_mm > voxel:
-        warnings.warn(f"{label_name} and {image_name} differ in extent by {relation.extent_gap_mm:.1f} mm, more than "
+        warnings.warn(f"{label_name} and {image_name} differ in extent by {_mm(relation.extent_gap_mm)} mm, more than "
                       f"one voxel ({voxel:.3g} mm); it is placed by patient position, {_percent(relation.overlap)} % "
                       f"of it inside {image_name}", stacklevel=2)
     return resample_nearest(label_volume.values, source_affine, image_volume.shape, target_affine)
@@ -311,6 +311,11 @@ def _frozen(affine):
 def _direction(affine):
     matrix = np.asarray(affine, dtype=float)[:3, :3]
     return matrix / np.linalg.norm(matrix, axis=0)
+
+
+def _mm(distance):
+    """A distance for a message: to a tenth of a mm, or in powers of ten for a damaged header's absurd ones."""
+    return f"{distance:.1f}" if distance < 1e6 else f"{distance:.3g}"
 
 
 def _percent(fraction):
