@@ -327,3 +327,27 @@ def test_info_of_a_mask_folder_lists_empty_masks_and_overlaps(tmp_path):
     assert summary["overlaps"] == [{"labels": [2, 3], "names": ["liver", "spleen"], "voxels": 32}]
     text = run("info", folder, "--labels").stdout
     assert "  1 kidney_left: 0 voxels, 0 mL" in text and "  liver and spleen: 32 voxels" in text
+
+
+def test_a_mask_folder_takes_anatomy_colours_and_a_colour_table_by_name(tmp_path):
+    from voxrender.colours import anatomy_colour
+
+    folder = tmp_path / "segmentations"
+    folder.mkdir()
+    for name, box in (("liver", np.s_[2:6, 2:6, 2:6]), ("spleen", np.s_[2:6, 2:6, 8:11]),
+                      ("tumour", np.s_[7:9, 7:9, 2:4])):
+        mask = np.zeros((10, 10, 12), np.uint8)
+        mask[box] = 1
+        write_nifti(folder / f"{name}.nii.gz", mask)
+    result = run("render", folder, "--labels", "--size", "48", "--labels-out", tmp_path / "a.json", "-o",
+                 tmp_path / "a.png")
+    assert result.exit_code == 0, result.output
+    listed = {v["name"]: v for v in json.loads((tmp_path / "a.json").read_text())["labels"]}
+    assert [listed[n]["label"] for n in ("liver", "spleen", "tumour")] == [1, 2, 3]          # sorted names
+    assert tuple(listed["liver"]["colour"]) == anatomy_colour("liver") and listed["tumour"]["colour"]
+    (tmp_path / "t.csv").write_text("label,name,r,g,b\n40,spleen,1,2,3\n")                  # another number
+    result = run("render", folder, "--labels", "--size", "48", "--colours", tmp_path / "t.csv", "--labels-out",
+                 tmp_path / "b.json", "-o", tmp_path / "b.png")
+    listed = {v["name"]: v for v in json.loads((tmp_path / "b.json").read_text())["labels"]}
+    assert listed["spleen"]["colour"] == [1, 2, 3] and listed["spleen"]["label"] == 2
+    assert tuple(listed["liver"]["colour"]) == anatomy_colour("liver")

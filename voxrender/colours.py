@@ -217,25 +217,31 @@ def label_colours(labels, stored=None, given=None):
     """Name and colour of each of ``labels``: ``{label: (name, (r, g, b))}``.
 
     A label takes its entry in ``given`` (a table the user gave), else in ``stored`` (kept with the object: a
-    ``.seg.nrrd``'s segments, a SEG's, the names of a mask folder's files), else ``"label N"``.  A stored name
-    without a colour takes the anatomy table's (:func:`anatomy_colour`); what is left takes the :func:`palette`.
-    ``stored`` may be the JSON form kept in a ``.vxs`` (``{"3": {"name": ..., "colour": [...] or None}}``).
+    ``.seg.nrrd``'s segments, a SEG's, the names of a mask folder's files), else ``"label N"``.  When the object
+    names its labels and ``given`` names some of them too, ``given`` applies by name (a table of structures over a
+    mask folder, whose numbers follow its file names), else by number.  A stored name without a colour takes the
+    anatomy table's (:func:`anatomy_colour`); what is left takes the :func:`palette`.  ``stored`` may be the JSON
+    form kept in a ``.vxs`` (``{"3": {"name": ..., "colour": [...] or None}}``).
 
     >>> label_colours([1, 2], given={2: ("liver", (200, 100, 50))})
     {1: ('label 1', (230, 159, 0)), 2: ('liver', (200, 100, 50))}
     >>> label_colours([1, 2], stored={"1": {"name": "liver", "colour": None}, "2": {"name": "tumour", "colour": None}})
     {1: ('liver', (40, 140, 40)), 2: ('tumour', (86, 180, 233))}
+    >>> label_colours([1], stored={"1": {"name": "liver", "colour": None}}, given={7: ("liver", (1, 2, 3))})
+    {1: ('liver', (1, 2, 3))}
     """
     built_in = palette(labels)
+    kept = {int(k): (v["name"], v.get("colour")) if isinstance(v, dict) else tuple(v)
+            for k, v in (stored or {}).items()}
+    by_name = {name: (name, colour) for name, colour in (given or {}).values()}
+    by_name = by_name if any(name in by_name for name, _ in kept.values()) else None
     table = {}
     for v in labels:
-        entry = (given or {}).get(int(v))
+        name, colour = kept.get(int(v), (None, None))
+        entry = by_name.get(name) if by_name is not None else (given or {}).get(int(v))
         if entry is None:
-            kept = (stored or {}).get(str(int(v)), (stored or {}).get(int(v)))
-            name, colour = (kept["name"], kept.get("colour")) if isinstance(kept, dict) else kept or (None, None)
             name = name or f"label {v}"
-            colour = colour or anatomy_colour(name) or built_in[int(v)]
-            entry = (name, tuple(int(c) for c in colour))
+            entry = (name, tuple(int(c) for c in colour or anatomy_colour(name) or built_in[int(v)]))
         table[int(v)] = entry
     return table
 
