@@ -351,3 +351,18 @@ def test_a_mask_folder_takes_anatomy_colours_and_a_colour_table_by_name(tmp_path
     listed = {v["name"]: v for v in json.loads((tmp_path / "b.json").read_text())["labels"]}
     assert listed["spleen"]["colour"] == [1, 2, 3] and listed["spleen"]["label"] == 2
     assert tuple(listed["liver"]["colour"]) == anatomy_colour("liver")
+
+
+def test_a_manifest_labels_column_takes_a_mask_folder(tmp_path, ct_file):
+    folder = tmp_path / "segmentations"
+    folder.mkdir()
+    for label in (1, 2, 3):
+        write_nifti(folder / f"part{label}.nii.gz", (nested() == label).astype(np.uint8))
+    (tmp_path / "m.csv").write_text(f"input,labels\n{ct_file.name},{folder.name}\n")
+    result = run("batch", "--manifest", tmp_path / "m.csv", "--view", "left", "--size", "40", "--jobs", "1",
+                 "-o", tmp_path / "out")
+    assert result.exit_code == 0, result.output
+    with open(tmp_path / "out" / "summary.csv") as f:
+        row = next(csv.DictReader(f))
+    volumes = json.loads(row["label_volumes"])
+    assert [(v["name"], v["voxels"]) for v in volumes] == [(f"part{k}", int((nested() == k).sum())) for k in (1, 2, 3)]

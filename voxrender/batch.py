@@ -279,21 +279,31 @@ def items_from(inputs, manifest_rows, read, prepare, options, views, patterns, p
     return items
 
 
+def _content_files(path):
+    """The files an input is made of: a folder's (a series, a mask folder), or the file and the data files a
+    detached header names.
+    """
+    if path.is_dir():
+        return sorted(p for p in path.rglob("*") if p.is_file())
+    files = [path]
+    if path.suffix.lower() == ".mhd":
+        files += [p for p in path.parent.iterdir() if p.suffix.lower() in (".raw", ".zraw")]
+    if path.suffix.lower() == ".nhdr":                      # a detached NRRD header names its data file
+        files += [p for p in path.parent.iterdir() if p.name.startswith(path.stem + ".") and p != path]
+    return files
+
+
 def cache_key(path, read, prepare):
     """Hex digest of the input's content (every file's name and bytes) and the options that shape the object."""
     digest = hashlib.sha256()
     path = Path(path)
     if not path.exists():            # a manifest's row may name anything
         raise InputError(f"no such file or folder: {path}", parameter="inputs")
-    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+    files = _content_files(path)
     if prepare.labels is not None and prepare.labels.source is not None:      # the paired label map shapes it too
         if not Path(prepare.labels.source).exists():
             raise InputError(f"no such file or folder: {prepare.labels.source}", parameter="labels_from")
-        files.append(Path(prepare.labels.source))
-    if path.suffix.lower() == ".mhd" and path.is_file():
-        files += [p for p in path.parent.iterdir() if p.suffix.lower() in (".raw", ".zraw")]
-    if path.suffix.lower() == ".nhdr" and path.is_file():    # a detached NRRD header names its data file
-        files += [p for p in path.parent.iterdir() if p.name.startswith(path.stem + ".") and p != path]
+        files += _content_files(Path(prepare.labels.source))
     for file in files:
         digest.update(str(file.relative_to(path) if file.is_relative_to(path) else file.name).encode())
         _add_bytes(digest, file)
