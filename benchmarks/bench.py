@@ -40,6 +40,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from benchmarks.masks import bench_mask_folder
 from voxrender import io, prep, segments
 from voxrender._render import DEFAULT_METHOD, METHODS, render
 from voxrender.pipeline import Encoded
@@ -456,6 +457,13 @@ def markdown(results):
         lines[2:2] = ["Reading vhf_head (median seconds):", "", "| stored as | MB | read s |", "|---|---|---|",
                       *(f"| {name} | {row['megabytes']:.1f} | {row['seconds']:.2f} |"
                         for name, row in results["read"].items()), ""]
+    if results.get("mask_folder"):
+        m = results["mask_folder"]
+        grid = " x ".join(map(str, m["grid_xyz"]))
+        lines[2:2] = [f"Reading {m['masks']} masks of a {grid} grid as a folder of `.nii.gz` ({m['folder_mb']:.0f} "
+                      f"MB), as TotalSegmentator writes them: {m['mask_folder_s']:.1f} s; "
+                      f"the same labels as one `.nii.gz` ({m['one_file_mb']:.0f} MB): {m['one_file_s']:.2f} s "
+                      f"({m['ratio']:.0f}x; medians, same run)", ""]
     lines += _views_table(results["views"], methods + peers)
     if results.get("stages"):
         stages = results["stages"]
@@ -633,6 +641,7 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
             "machine": f"{platform.machine()}, {platform.python_version()}, numpy {np.__version__}",
             "repeat": repeat, "read_s": read_s, "encode": encode, "vtk_version": vtk_version,
             "read": bench_read(path, volume, max(1, repeat // 2)),
+            "mask_folder": bench_mask_folder(max(1, repeat // 2)),
             "views": bench_views(encoded, repeat, peer=peer),
             "skin": {"voxels": skin.segments.voxel_count, "segments": skin.segments.segment_count,
                      "views": bench_views(skin, repeat, views=PAPER_VIEWS)},

@@ -49,3 +49,10 @@ def test_markdown_report(tmp_path):
     assert "| gradient, fresh process |" in text and "In a fresh process" in text
     rows = results["raycast"]["shell"]["rows"]
     assert rows["adaptive"]["leaks"] == 0 and rows["26"]["leaks"] > 0
+
+
+def test_mask_folder_section_runs_small():
+    from benchmarks.masks import bench_mask_folder
+
+    result = bench_mask_folder(1, shape=(12, 16, 20), count=5)
+    assert result["masks"] == 5 and result["grid_xyz"] == [20, 16, 12] and result["mask_folder_s"] > 0
