@@ -16,13 +16,6 @@ NAMES = ["liver", "spleen", "kidney"]
 COLOURS = [(221, 130, 101), (157, 108, 162), (185, 102, 83)]
 
 
-@pytest.fixture(autouse=True)
-def seg_format(monkeypatch):
-    """``format="seg"`` for read_volume, so the SEG is reoriented as any input is (until READERS lists it)."""
-    if "seg" not in io.READERS:
-        monkeypatch.setitem(io.READERS, "seg", seg_reader.READER)
-
-
 def blobs(shape=SHAPE):
     """A label map [z, y, x] of three blobs: a ball, a box and a slab on two slices only."""
     z, y, x = np.mgrid[:shape[0], :shape[1], :shape[2]]

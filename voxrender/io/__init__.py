@@ -6,6 +6,7 @@ read by the module of its name (``voxrender.io.dicom`` ...):
 ========== ==========================================================================
 format     what
 ========== ==========================================================================
+seg        a DICOM SEG file (BINARY, FRACTIONAL or LABELMAP): one label map, named by its segments (highdicom)
 dicom      a folder holding a DICOM series, ordered by ImagePositionPatient
 images     a folder of 2-D images (PNG, TIFF, BMP, JPEG), in natural order of names
 metaimage  a MetaImage ``.mhd`` (header + raw file) or ``.mha`` (one file), raw or zlib
@@ -41,7 +42,7 @@ import numpy as np
 
 from .. import orient
 from ..errors import InputError
-from . import dicom, images, masks, metaimage, nifti, npy, nrrd, raw, tiff
+from . import dicom, images, masks, metaimage, nifti, npy, nrrd, raw, seg, tiff
 from ._shared import (
     RawLayout,
     Reader,
@@ -60,6 +61,7 @@ __all__ = ["Volume", "RawLayout", "Reader", "READERS", "FORMATS", "read_volume",
 # The formats by name, in the order ``format="auto"`` tries them: a folder of DICOM files before one of images (an
 # export may hold a preview picture beside its slices), folders of slices before folders of volume files.
 READERS = {
+    "seg": seg.READER,
     "dicom": dicom.READER,
     "images": images.READER,
     "metaimage": metaimage.READER,
@@ -93,6 +95,9 @@ def detect_format(path, raw=None):
     if path.is_dir() and next(path.iterdir(), None) is None:
         raise InputError(f"{path} is an empty folder; give a folder of slices")
     if path.is_file():
+        for format, reader in READERS.items():
+            if reader.sniff_first and reader.sniff(path):
+                return format
         for format, reader in READERS.items():
             if path.name.lower().endswith(reader.suffixes):
                 return format

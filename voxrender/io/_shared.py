@@ -64,12 +64,16 @@ class Reader:
     sniff : callable, optional
         ``sniff(path) -> bool``: whether ``path`` is of this format although no suffix says so, from what a folder
         holds or a file's magic bytes.  ``format="auto"`` asks it after every reader's suffixes.
+    sniff_first : bool
+        Ask ``sniff`` of a file before any reader's suffixes: for a format whose files bear another's suffix (a
+        DICOM SEG is a ``.dcm`` file).
     """
 
     function: Callable
     suffixes: tuple = ()
     options: tuple = ()
     sniff: Callable | None = None
+    sniff_first: bool = False
 
 
 @dataclass(frozen=True)

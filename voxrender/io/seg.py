@@ -312,4 +312,4 @@ def _referenced_series(dataset):
     return str(items[0].get("SeriesInstanceUID", "")) if len(items) else ""
 
 
-READER = Reader(read_seg, (), sniff=is_seg)
+READER = Reader(read_seg, (), sniff=is_seg, sniff_first=True)
