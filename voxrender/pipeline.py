@@ -246,13 +246,38 @@ def _encode_labels(volume, read, prepare, meta, progress):
 
 
 def read_labels(source, image, read=None):
-    """The label map that ``source`` (a path: a label map, a folder of masks) holds for ``image``, on its own grid
-    (:func:`on_image_grid` places it on the image's); its errors name the label map.
+    """The label map that ``source`` holds for ``image``, on its own grid (:func:`on_image_grid` places it on the
+    image's): a label map, a folder of masks, a DICOM SEG, or a DICOM folder holding one beside its slices (the
+    image's own folder too).  A SEG that references another series than the image's is refused, naming both; the
+    errors name the label map.
     """
+    path = Path(source)
     try:
-        return replace(read or ReadOptions(), format="auto", frame=None).read(source)
+        if path.is_dir() and io.READERS["dicom"].sniff(path):
+            path = _segmentation_in(path, image)
+        labels = replace(read or ReadOptions(), format="auto", frame=None).read(path)
     except InputError as exc:
         raise InputError(f"the label map: {exc.message}", parameter="labels_from") from None
+    referenced, series = labels.meta.get("referenced_series"), image.meta.get("series")
+    if referenced and series and referenced != series:
+        raise InputError(f"the label map {path} was made on series {referenced}, but the image is series {series}; "
+                         "give the image it was made on", parameter="labels_from")
+    return labels
+
+
+def _segmentation_in(folder, image):
+    """The one segmentation file a DICOM folder holds beside its slices."""
+    from .io.dicom import segmentation_files
+
+    same = Path(image.meta.get("source", "")).resolve() == folder.resolve()
+    found = [Path(f) for f in image.meta.get("segmentations", [])] if same else segmentation_files(folder)
+    if not found:
+        raise InputError(f"{folder} holds DICOM files but no segmentation (SEG or RTSTRUCT) beside its slices; "
+                         "give the label map itself")
+    if len(found) > 1:
+        raise InputError(f"{folder} holds {len(found)} segmentations ({', '.join(f.name for f in found[:4])}); "
+                         "give the one to show")
+    return found[0]
 
 
 def on_image_grid(label_volume, volume, label_name):

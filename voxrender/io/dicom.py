@@ -415,6 +415,22 @@ def _sort_dicom(items):
 
 
 
+def segmentation_files(folder):
+    """The segmentation files (SEG, RTSTRUCT) among a folder's DICOM files, by their SOPClassUID alone."""
+    import pydicom
+
+    found = []
+    for f in _dicom_files(folder):
+        try:
+            sop_class = str(pydicom.dcmread(f, stop_before_pixels=True, specific_tags=["SOPClassUID"], force=True)
+                            .get("SOPClassUID", ""))
+        except damaged_file_errors():
+            continue                                   # not one: the slices' reader names a damaged file
+        if sop_class in SEGMENTATIONS:
+            found.append(f)
+    return found
+
+
 def holds_dicom(path):
     """A folder holding DICOM files (or with some below it), or one DICOM file."""
     return _is_dicom(path) if path.is_file() else bool(_dicom_files(path))

@@ -1,0 +1,81 @@
+"""Segmentations paired with their image through the commands: a DICOM SEG with its CT series (given by path, or
+found in the study's folder), on its own geometry, and one made on another series."""
+
+import json
+import shutil
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+from seg_files import write_ct, write_ct_and_seg
+from test_cli import assert_bad_input, run
+
+from voxrender import io
+from voxrender.output import write_nifti
+
+NAMES = ["liver", "spleen", "kidney_left"]
+
+
+def organs(shape=(14, 24, 28)):
+    """Three labelled blobs [z, y, x], the third only on a few slices (a SEG stores only the frames it needs)."""
+    z, y, x = np.mgrid[:shape[0], :shape[1], :shape[2]]
+    labels = np.zeros(shape, np.uint8)
+    labels[(x - 9) ** 2 + (y - 11) ** 2 + ((z - 7) * 2) ** 2 <= 36] = 1
+    labels[4:10, 14:20, 16:24] = 2
+    labels[9:12, 3:8, 18:25] = 3
+    return labels
+
+
+@pytest.fixture
+def study(tmp_path):
+    """A CT series, its SEG of :func:`organs`, and the same labels as a NIfTI on the CT's grid (written at the CT's
+    origin, so that it pairs by position as the SEG does)."""
+    ct, seg = write_ct_and_seg(tmp_path, organs(), NAMES)
+    volume = io.read_volume(ct)
+    nifti = write_nifti(tmp_path / "labels.nii.gz", organs(), volume.spacing, volume.meta["origin"])
+    return ct, seg, nifti
+
+
+def label_image(tmp_path, name, *args):
+    result = run("render", *args, "--size", "64", "--scale", "1.5", "--view", "left", "--label-png",
+                 tmp_path / f"{name}.png", "--labels-out", tmp_path / f"{name}.json", "-o", tmp_path / f"{name}-rgb.png")
+    assert result.exit_code == 0, result.output
+    return iio.imread(tmp_path / f"{name}.png"), json.loads((tmp_path / f"{name}.json").read_text())["labels"]
+
+
+def test_a_ct_with_its_seg_renders_the_label_image_of_the_map_it_was_written_from(tmp_path, study):
+    ct, seg, nifti = study
+    from_map, _ = label_image(tmp_path, "map", ct, "--labels-from", nifti)
+    from_seg, listed = label_image(tmp_path, "seg", ct, "--labels-from", seg)
+    np.testing.assert_array_equal(from_seg, from_map)
+    assert set(np.unique(from_seg)) == {0, 1, 2, 3}
+    assert [(v["label"], v["name"]) for v in listed] == list(enumerate(NAMES, 1))           # names from the SEG
+    voxel_ml = float(np.prod(io.read_volume(ct).spacing)) / 1000
+    assert [v["ml"] for v in listed] == [round(int((organs() == k).sum()) * voxel_ml, 3) for k in (1, 2, 3)]
+
+
+def test_a_seg_alone_renders_on_its_own_geometry_and_in_the_study_folder_beside_its_ct(tmp_path, study):
+    ct, seg, _ = study
+    alone, listed = label_image(tmp_path, "alone", seg, "--labels")
+    assert set(np.unique(alone)) == {0, 1, 2, 3} and [v["name"] for v in listed] == NAMES
+    folder = tmp_path / "study"
+    shutil.copytree(ct, folder)
+    shutil.copy(seg, folder / "seg.dcm")                                  # one folder: the slices and their SEG
+    beside, _ = label_image(tmp_path, "beside", folder, "--labels-from", folder)
+    np.testing.assert_array_equal(beside, label_image(tmp_path, "apart", ct, "--labels-from", seg)[0])
+
+
+def test_a_seg_of_another_series_is_refused_naming_both(tmp_path, study):
+    _, seg, _ = study
+    other = tmp_path / "other"
+    write_ct(other, organs().shape)
+    result = run("render", other, "--labels-from", seg, "-o", tmp_path / "x.png")
+    assert_bad_input(result, "--labels-from", "was made on series", "but the image is series")
+    assert not (tmp_path / "x.png").exists()
+
+
+def test_info_lists_a_segs_segments(tmp_path, study):
+    _, seg, _ = study
+    summary = json.loads(run("info", seg, "--labels", "--json").stdout)
+    assert [v["name"] for v in summary["labels"].values()] == NAMES
+    assert summary["format"] == "seg"
