@@ -38,7 +38,8 @@ def study(tmp_path):
 
 def label_image(tmp_path, name, *args):
     result = run("render", *args, "--size", "64", "--scale", "1.5", "--view", "left", "--label-png",
-                 tmp_path / f"{name}.png", "--labels-out", tmp_path / f"{name}.json", "-o", tmp_path / f"{name}-rgb.png")
+                 tmp_path / f"{name}.png", "--labels-out", tmp_path / f"{name}.json",
+                 "-o", tmp_path / f"{name}-rgb.png")
     assert result.exit_code == 0, result.output
     return iio.imread(tmp_path / f"{name}.png"), json.loads((tmp_path / f"{name}.json").read_text())["labels"]
 
