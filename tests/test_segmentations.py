@@ -80,3 +80,27 @@ def test_info_lists_a_segs_segments(tmp_path, study):
     summary = json.loads(run("info", seg, "--labels", "--json").stdout)
     assert [v["name"] for v in summary["labels"].values()] == NAMES
     assert summary["format"] == "seg"
+
+
+def test_a_ct_with_its_rtstruct_renders_the_label_image_of_the_masks_it_outlines(tmp_path, study):
+    """The planar contours of each ROI, traced from the labels and written by pydicom, drawn on the CT's grid."""
+    from rtstruct_files import references_of, write_rtstruct_of_labels
+
+    ct, _, nifti = study
+    volume = io.read_volume(ct)
+    structure_set = write_rtstruct_of_labels(tmp_path / "rs.dcm", organs(), io.patient_affine(volume), NAMES,
+                                             [(220, 60, 40), (60, 160, 60), (40, 90, 200)],
+                                             **references_of(sorted(ct.iterdir())))
+    from_map, _ = label_image(tmp_path, "map", ct, "--labels-from", nifti)
+    from_rtstruct, listed = label_image(tmp_path, "rs", ct, "--labels-from", structure_set)
+    np.testing.assert_array_equal(from_rtstruct, from_map)
+    assert [(v["name"], v["colour"]) for v in listed] == [("liver", [220, 60, 40]), ("spleen", [60, 160, 60]),
+                                                          ("kidney_left", [40, 90, 200])]
+    summary = json.loads(run("info", ct, "--labels-from", structure_set, "--json").stdout)
+    assert {v["name"]: v["voxels"] for v in summary["labels"].values()} == \
+        {name: int((organs() == k).sum()) for k, name in enumerate(NAMES, 1)}
+    assert_bad_input(run("render", structure_set, "-o", tmp_path / "x.png"), "is an RTSTRUCT", "its CT series")
+    other = tmp_path / "other"
+    write_ct(other, organs().shape)
+    assert_bad_input(run("render", other, "--labels-from", structure_set, "-o", tmp_path / "x.png"),
+                     "--labels-from", str(volume.meta["series"]))

@@ -247,17 +247,25 @@ def _encode_labels(volume, read, prepare, meta, progress):
 
 def read_labels(source, image, read=None):
     """The label map that ``source`` holds for ``image``, on its own grid (:func:`on_image_grid` places it on the
-    image's): a label map, a folder of masks, a DICOM SEG, or a DICOM folder holding one beside its slices (the
-    image's own folder too).  A SEG that references another series than the image's is refused, naming both; the
-    errors name the label map.
+    image's): a label map, a folder of masks, a DICOM SEG, an RTSTRUCT (its contours drawn on the image's grid), or
+    a DICOM folder holding a SEG or RTSTRUCT beside its slices (the image's own folder too).  A segmentation that
+    references another series than the image's is refused, naming both; the errors name the label map.
     """
+    from .io import rtstruct
+
     path = Path(source)
     try:
         if path.is_dir() and io.READERS["dicom"].sniff(path):
             path = _segmentation_in(path, image)
-        labels = replace(read or ReadOptions(), format="auto", frame=None).read(path)
+        if rtstruct.is_rtstruct(path):                 # contours have no grid: they are drawn on the image's own
+            labels = rtstruct.read_rtstruct(path, image)
+        else:
+            labels = replace(read or ReadOptions(), format="auto", frame=None).read(path)
     except InputError as exc:
         raise InputError(f"the label map: {exc.message}", parameter="labels_from") from None
+    if labels.meta.get("format") == "rtstruct":
+        rtstruct.check_reference(labels.meta, image)     # any series it references; else the frame of reference
+        return labels
     referenced, series = labels.meta.get("referenced_series"), image.meta.get("series")
     if referenced and series and referenced != series:
         raise InputError(f"the label map {path} was made on series {referenced}, but the image is series {series}; "

@@ -18,6 +18,9 @@ nifti      NIfTI-1 or -2, ``.nii`` or ``.nii.gz`` (nibabel), scaled by scl_slope
 nrrd       NRRD, ``.nrrd`` or ``.nhdr`` with a detached data file (pynrrd), raw, gzip or bzip2
 ========== ==========================================================================
 
+An RTSTRUCT holds contours, not a grid: it is read as the labels of its image only, by
+:func:`voxrender.io.rtstruct.read_rtstruct` (``--labels-from``), and so has no entry in ``READERS``.
+
 ``voxrender.io._shared`` holds what they share: :class:`Volume`, :class:`Reader`, :class:`RawLayout`, the listing
 of folders and the filling of stacks.  A folder of NIfTI or NRRD files (a segmentation's one file per organ) is
 read as one label map (``masks``); the ``nifti`` and ``nrrd`` formats, named for a folder, refuse it.

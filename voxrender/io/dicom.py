@@ -87,6 +87,11 @@ def read_dicom(folder, progress, series=None):
     from pydicom.errors import InvalidDicomError
 
     if folder.is_file():
+        from .rtstruct import is_rtstruct
+
+        if is_rtstruct(folder):
+            raise InputError(f"{folder} is an RTSTRUCT: it holds contours, not a volume; give its CT series as the "
+                             "image and the RTSTRUCT as its labels", parameter="labels_from")
         raise InputError(f"{folder} is one DICOM file; give the folder that holds the whole series")
     files = _dicom_files(folder)
     if not files:
