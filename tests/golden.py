@@ -6,6 +6,7 @@ Look at every picture before committing new ones.  A case is the command line of
 
 import sys
 import tempfile
+import warnings
 from pathlib import Path
 
 from click.testing import CliRunner
@@ -26,8 +27,11 @@ CASES = {
     # vhf_head with its label map by HU ranges (bone, soft tissue, airway), cut open
     "head-labels": ["render", "{data}/vhf_head", "--labels-from", "{samples}/head.seg.nrrd", "--voxel", "2",
                     "--alpha", "90", "--beta", "60", "--clip-x", ":128", "--legend", "--size", "160"],
+    # the same labels as a DICOM SEG of the real series, written by highdicom, placed by position
+    "head-seg": ["render", "{data}/vhf_head", "--labels-from", "{samples}/head-seg.dcm", "--voxel", "2",
+                 "--alpha", "90", "--beta", "60", "--clip-x", ":128", "--legend", "--size", "160"],
 }
-REAL_DATA = {"headsq-bone", "head-labels"}
+REAL_DATA = {"headsq-bone", "head-labels", "head-seg"}
 
 
 def head_labels(samples, data):
@@ -44,6 +48,33 @@ def head_labels(samples, data):
                    volume.meta["origin"])
 
 
+def head_seg(samples, data):
+    """The label map of :func:`head_labels` as a DICOM SEG (BINARY, named and coloured) of vhf_head's own slices,
+    made once into ``samples`` with highdicom from copies of the slices (highdicom asks of its sources attributes
+    they lack, which are added to the copies)."""
+    import shutil
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from seg_files import complete_sources, write_seg
+
+    from voxrender.io import read_volume
+    from voxrender.samples import TISSUES, tissue_labels
+
+    target = Path(samples) / "head-seg.dcm"
+    if target.is_file():
+        return
+    copies = Path(samples) / "vhf_sources"
+    shutil.copytree(Path(data) / "vhf_head", copies, dirs_exist_ok=True)
+    with warnings.catch_warnings():            # pydicom's and highdicom's note on the one-word PatientName
+        warnings.simplefilter("ignore")
+        sources = sorted(complete_sources(sorted(copies.iterdir())),
+                         key=lambda ds: float(ds.ImagePositionPatient[2]))
+        labels = tissue_labels(read_volume(Path(data) / "vhf_head").values)       # [z, y, x], z from the feet up
+        names, colours = zip(*(TISSUES[k] for k in sorted(TISSUES)), strict=True)
+        write_seg(target, sources, labels, list(names), colours=list(colours))
+    shutil.rmtree(copies)
+
+
 def render_case(name, output, samples, data=DATA):
     """Run the case's command, writing its picture to ``output``."""
     args = [a.format(samples=samples, data=data) for a in CASES[name]] + ["-o", str(output)]
@@ -51,6 +82,8 @@ def render_case(name, output, samples, data=DATA):
         CliRunner().invoke(main, ["samples", str(samples)])
     if name == "head-labels":
         head_labels(samples, data)
+    if name == "head-seg":
+        head_seg(samples, data)
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 0, (args, result.output)
 
