@@ -104,3 +104,11 @@ def test_a_ct_with_its_rtstruct_renders_the_label_image_of_the_masks_it_outlines
     write_ct(other, organs().shape)
     assert_bad_input(run("render", other, "--labels-from", structure_set, "-o", tmp_path / "x.png"),
                      "--labels-from", str(volume.meta["series"]))
+
+
+def test_a_seg_of_a_few_slices_pairs_without_a_warning(tmp_path, study):
+    """A SEG stores only the frames that hold a segment, so its grid is shorter than its CT's by design: the
+    warning for extents that differ (meant for maps that do not correspond) said so of every such SEG."""
+    ct, seg, _ = study
+    result = run("render", ct, "--labels-from", seg, "--size", "32", "-o", tmp_path / "x.png")
+    assert result.exit_code == 0 and "warning" not in result.stderr, result.stderr

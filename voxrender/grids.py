@@ -201,7 +201,7 @@ def relate(source_shape, source_affine, target_shape, target_affine):
 
 
 def pair(label_volume, image_volume, label_name="the label map", *, image_name="the image",
-         parameter="labels_from"):
+         parameter="labels_from", partial=False):
     """The values of ``label_volume`` on the grid of ``image_volume``, placed by patient position.
 
     Both grids come from :func:`voxrender.io.patient_affine`.  A label map that does not overlap the image at all
@@ -217,6 +217,9 @@ def pair(label_volume, image_volume, label_name="the label map", *, image_name="
         What to call them in messages (a file's name).
     parameter : str, optional
         The keyword at fault in the error when they do not overlap.
+    partial : bool
+        The label map covers only part of its image by design (a DICOM SEG stores only the frames that hold a
+        segment): no warning for a smaller extent, only for one that reaches outside the image.
 
     Returns
     -------
@@ -248,7 +251,7 @@ def pair(label_volume, image_volume, label_name="the label map", *, image_name="
                          f"and {image_name} {_span(*relation.target_extent)} (patient LPS); give the label map made "
                          "from this image", parameter=parameter)
     voxel = max(relation.target_voxel_mm)
-    if relation.extent_gap_mm > voxel:
+    if relation.extent_gap_mm > voxel and (not partial or relation.overlap < 0.999):
         warnings.warn(f"{label_name} and {image_name} differ in extent by {_mm(relation.extent_gap_mm)} mm, more than "
                       f"one voxel ({voxel:.3g} mm); it is placed by patient position, {_percent(relation.overlap)} % "
                       f"of it inside {image_name}", stacklevel=2)

@@ -297,7 +297,8 @@ def on_image_grid(label_volume, volume, label_name):
 
     placed = [v.direction is not None and "origin" in v.meta for v in (label_volume, volume)]
     if all(placed):
-        return pair(label_volume, volume, f"the label map {label_name}")
+        return pair(label_volume, volume, f"the label map {label_name}",
+                    partial=label_volume.meta.get("format") == "seg")        # a SEG keeps only frames it needs
     if label_volume.shape != volume.shape:
         unplaced = "the label map" if not placed[0] else "the image"
         raise InputError(f"the label map {label_name} has shape {label_volume.shape[::-1]} (x, y, z) but the image "
