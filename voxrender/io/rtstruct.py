@@ -38,7 +38,7 @@ import numpy as np
 
 from ..errors import InputError
 from ._shared import Volume, check_fits, first_line, identity_progress
-from .dicom import _BoundedFile, damaged_file_errors
+from .dicom import _BoundedFile, _is_dicom, damaged_file_errors
 
 SOP_CLASS = "1.2.840.10008.5.1.4.1.1.481.3"          # RT Structure Set Storage
 OVERLAP_RULE = "a voxel in two ROIs goes to the lower label (the lower ROINumber)"
@@ -66,11 +66,11 @@ def is_rtstruct(path):
     >>> is_rtstruct(pathlib.Path(tempfile.mkdtemp()))
     False
     """
+    path = Path(path)
+    if not path.is_file() or not _is_dicom(path):      # asked of every label source: no pydicom for a NIfTI
+        return False
     import pydicom
 
-    path = Path(path)
-    if not path.is_file():
-        return False
     try:
         with _BoundedFile(path) as stream:
             ds = pydicom.dcmread(stream, stop_before_pixels=True, specific_tags=["SOPClassUID", "Modality"])

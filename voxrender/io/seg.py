@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import InputError
 from ._shared import Reader, Volume, check_fits, check_holds, first_line, quiet_log
-from .dicom import _BoundedFile, damaged_file_errors
+from .dicom import _BoundedFile, _is_dicom, damaged_file_errors
 
 SOP_CLASSES = {"1.2.840.10008.5.1.4.1.1.66.4": "Segmentation Storage",
                "1.2.840.10008.5.1.4.1.1.66.7": "Label Map Segmentation Storage"}
@@ -44,10 +44,10 @@ def is_seg(path):
     >>> is_seg(pathlib.Path(tempfile.mkdtemp()))
     False
     """
+    if not path.is_file() or not _is_dicom(path):      # asked of every file: no pydicom for a NIfTI
+        return False
     import pydicom
 
-    if not path.is_file():
-        return False
     try:
         with _BoundedFile(path) as stream:
             ds = pydicom.dcmread(stream, stop_before_pixels=True, specific_tags=["SOPClassUID"])
