@@ -387,10 +387,10 @@ def check_holds(source, promised, held, what="voxels", exact=False):
                          "header is damaged")
 
 
-def inflate(stream, codec, promised, source):
+def inflate(stream, codec, promised, source, longer=False):
     """Exactly ``promised`` bytes inflated from the rest of ``stream`` (a binary file) in ``codec`` (``"gzip"``,
-    ``"bzip2"``, or ``"zlib"``: zlib or gzip), inflating no more than that; a stream that ends short or runs long
-    is refused with both numbers.
+    ``"bzip2"``, or ``"zlib"``: zlib or gzip), inflating no more than that; a stream that ends short, or runs long
+    (unless ``longer``: the voxels are the first part of it, a frame of several), is refused with both numbers.
 
     Examples
     --------
@@ -405,6 +405,8 @@ def inflate(stream, codec, promised, source):
     except (zlib.error, OSError, EOFError) as exc:          # what zlib and bz2 raise for a garbled stream
         raise InputError(f"the {codec} stream of {source} is damaged after {len(data):,} bytes: "
                          f"{first_line(exc)}") from None
+    if len(data) > promised and longer:
+        del data[promised:]
     if len(data) > promised:
         raise InputError(f"the {codec} stream of {source} holds more than the {in_words(promised)} of voxels its "
                          "header promises; the header is damaged")
@@ -412,11 +414,12 @@ def inflate(stream, codec, promised, source):
     return data
 
 
-def read_voxels(stream, shape, dtype, source, codec=None, skip=0, exact=False):
+def read_voxels(stream, shape, dtype, source, codec=None, skip=0, exact=False, longer=False):
     """The voxels ``[z, y, x]`` of ``shape`` and ``dtype`` in the rest of the binary file ``stream``: raw
     (``codec=None``), or inflated by ``codec`` (``"gzip"``, ``"bzip2"`` or ``"zlib"``) past its first ``skip``
     inflated bytes.  Before anything is allocated, what the header promises is compared with what the file holds
-    (``exact``: no more either, for raw voxels) and with the memory free.
+    (``exact``: no more either, for raw voxels; ``longer``: a compressed stream may hold more, as a 4-D file's
+    frame does) and with the memory free.
 
     Examples
     --------
@@ -432,7 +435,7 @@ def read_voxels(stream, shape, dtype, source, codec=None, skip=0, exact=False):
     start = stream.tell()
     check_fits(shape, dtype, source, held=lambda limit: inflated_size(stream, codec, skip + limit) - skip)
     stream.seek(start)
-    return np.frombuffer(inflate(stream, codec, skip + nbytes, source), dtype, offset=skip).reshape(shape)
+    return np.frombuffer(inflate(stream, codec, skip + nbytes, source, longer), dtype, offset=skip).reshape(shape)
 
 
 def inflated_size(stream, codec, limit):
