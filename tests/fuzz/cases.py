@@ -559,6 +559,86 @@ def _multilabel_header(rng, seed):
     return f"label table {what}"
 
 
+# Elements of a segmentation object to damage: a value for each, or None to delete it.
+SEGMENTATION_ELEMENTS = {
+    "seg": {"NumberOfFrames": [0, 1, 99999, None], "Rows": [0, 1, 65535], "Columns": [0, 65535],
+            "SegmentationType": ["LABELMAP", "BOGUS", None], "MaximumFractionalValue": [0, 1, None],
+            "BitsAllocated": [8, 16, 0], "SegmentSequence": [None], "PerFrameFunctionalGroupsSequence": [None],
+            "SharedFunctionalGroupsSequence": [None], "ReferencedSeriesSequence": [None],
+            "FrameOfReferenceUID": ["1.2.3", None], "PixelData": [b"", b"\0" * 7, None]},
+    "rtstruct": {"StructureSetROISequence": [None], "ROIContourSequence": [None],
+                 "ReferencedFrameOfReferenceSequence": [None], "SOPClassUID": ["1.2.3", None],
+                 "Modality": ["CT", None]},
+}
+# ...and in the items of its sequences (the first item of each).
+ITEM_ELEMENTS = {
+    "seg": {"SegmentSequence": {"SegmentNumber": [0, 999, None], "SegmentLabel": ["", None],
+                                "RecommendedDisplayCIELabValue": [[1, 2], [70000, 0, 0], None]},
+            "PerFrameFunctionalGroupsSequence": {"PlanePositionSequence": [None],
+                                                 "SegmentIdentificationSequence": [None]}},
+    "rtstruct": {"StructureSetROISequence": {"ROINumber": [0, -1, None], "ROIName": ["", None]},
+                 "ROIContourSequence": {"ReferencedROINumber": [99, None], "ROIDisplayColor": [[1, 2], [999, 0, 0]],
+                                        "ContourSequence": [None]}},
+}
+CONTOUR_DAMAGE = ["odd ContourData", "nan ContourData", "huge ContourData", "NumberOfContourPoints wrong",
+                  "POINT", "one point", "no ContourData"]
+
+
+def _segmentation_header(kind):
+    """The header mutation of a SEG or an RTSTRUCT: one element of the object, or of the first item of one of its
+    sequences, set to a wrong value or deleted, with pydicom; for an RTSTRUCT sometimes a contour damaged."""
+
+    def mutate(rng, seed):
+        import pydicom
+        from pydicom import config
+
+        config.settings.reading_validation_mode = config.IGNORE
+        config.settings.writing_validation_mode = config.IGNORE
+        path = seed.files[0]
+        ds = pydicom.dcmread(path)
+        if kind == "rtstruct" and rng.random() < 0.35:
+            what = rng.choice(CONTOUR_DAMAGE)
+            contour = ds.ROIContourSequence[0].ContourSequence[0]
+            if what == "odd ContourData":
+                contour.ContourData = list(contour.ContourData)[:-1]
+            elif what == "nan ContourData":
+                contour.ContourData = ["nan"] * len(contour.ContourData)
+            elif what == "huge ContourData":
+                contour.ContourData = [1e300] * len(contour.ContourData)
+            elif what == "NumberOfContourPoints wrong":
+                contour.NumberOfContourPoints = 99999
+            elif what == "POINT":
+                contour.ContourGeometricType = "POINT"
+            elif what == "one point":
+                contour.ContourData, contour.NumberOfContourPoints = list(contour.ContourData)[:3], 1
+            else:
+                del contour.ContourData
+        elif rng.random() < 0.5:
+            keyword = rng.choice(sorted(SEGMENTATION_ELEMENTS[kind]))
+            value = rng.choice(SEGMENTATION_ELEMENTS[kind][keyword])
+            _set(ds, keyword, value)
+            what = f"{keyword}={'deleted' if value is None else repr(value)[:20]}"
+        else:
+            sequence = rng.choice(sorted(ITEM_ELEMENTS[kind]))
+            keyword = rng.choice(sorted(ITEM_ELEMENTS[kind][sequence]))
+            value = rng.choice(ITEM_ELEMENTS[kind][sequence][keyword])
+            if sequence in ds and len(ds[sequence].value):
+                _set(ds[sequence].value[0], keyword, value)
+            what = f"{sequence}[0].{keyword}={'deleted' if value is None else repr(value)[:20]}"
+        ds.save_as(path)
+        return what
+
+    return mutate
+
+
+def _set(ds, keyword, value):
+    if value is None:
+        if keyword in ds:
+            delattr(ds, keyword)
+    else:
+        setattr(ds, keyword, value)
+
+
 def _nrrd_header(rng, seed):
     return text_header_mutation(rng, seed.files[0], NRRD_FIELDS, ": ")
 
@@ -655,6 +735,8 @@ FORMATS = {
     "mhd": Format(seeds.metaimage_detached, _metaimage_header),
     "dicom": Format(seeds.dicom_series, _series_header),
     "dicom-enhanced": Format(seeds.dicom_enhanced, _enhanced_header),
+    "dicom-seg": Format(seeds.dicom_seg, _segmentation_header("seg")),
+    "dicom-rtstruct": Format(seeds.dicom_rtstruct, _segmentation_header("rtstruct")),
     "tiff": Format(seeds.tiff),
     "png": Format(seeds.png_folder),
     "npy": Format(seeds.npy, _npy_header),

@@ -147,6 +147,47 @@ def nifti_multilabel(case, values, spacing=SPACING, direction=None):
     return Seed(f"{INPUT}/{path.name}", ["--labels"], [path])
 
 
+def _ct_for_labels(case, values, spacing, direction):
+    """A CT series of the values (as HU) and its two labels, for a segmentation's seed: the series' files, the
+    labels as stored (slice z of the files at index z) and the series read back (its grid, for contours)."""
+    from seg_files import write_ct
+
+    from voxrender.io import read_volume
+
+    hu = np.nan_to_num(values.astype(np.float32), nan=0, posinf=3000, neginf=-1000).clip(-1024, 3000) - 1024
+    sources = write_ct(case / INPUT / "ct", values.shape, spacing, _direction(direction), hu)
+    return sources, _two_labels(values), read_volume(case / INPUT / "ct")
+
+
+def dicom_seg(case, values, spacing=SPACING, direction=None):
+    """A CT series and its DICOM SEG (BINARY, two named, coloured segments) written by highdicom;
+    ``--labels-from`` the SEG."""
+    from seg_files import write_seg
+
+    sources, labels, _ = _ct_for_labels(case, values, spacing, direction)
+    if not labels.any():                           # highdicom writes no SEG of nothing: one voxel, then
+        labels.flat[labels.size // 2] = 1
+    path = write_seg(case / INPUT / "seg.dcm", sources, labels, ["liver", "spleen"],
+                     colours=[(221, 130, 101), (157, 108, 162)]) if labels.max() > 1 else \
+        write_seg(case / INPUT / "seg.dcm", sources, labels, ["liver"])
+    return Seed(f"{INPUT}/ct", ["--labels-from", f"{INPUT}/seg.dcm"], [path])
+
+
+def dicom_rtstruct(case, values, spacing=SPACING, direction=None):
+    """A CT series and its RTSTRUCT (the two labels' contours, traced slice by slice) written by pydicom;
+    ``--labels-from`` the RTSTRUCT."""
+    from rtstruct_files import references_of, write_rtstruct_of_labels
+
+    from voxrender.io import patient_affine
+
+    _, _, volume = _ct_for_labels(case, values, spacing, direction)
+    labels = _two_labels(volume.values)
+    path = write_rtstruct_of_labels(case / INPUT / "rs.dcm", labels, patient_affine(volume), ["GTV", "PTV"],
+                                    [(255, 0, 0), (0, 0, 255)],
+                                    **references_of(sorted((case / INPUT / "ct").iterdir())))
+    return Seed(f"{INPUT}/ct", ["--labels-from", f"{INPUT}/rs.dcm"], [path])
+
+
 def metaimage_local(case, values, spacing=SPACING, direction=None):
     path = case / INPUT / "x.mha"
     write_metaimage(path, values.astype(np.int16), spacing, _direction(direction))
