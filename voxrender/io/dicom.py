@@ -420,6 +420,25 @@ def _sort_dicom(items):
 
 
 
+def fault(exc):
+    """What a pydicom or highdicom error says is wrong, for a message (the SEG and RTSTRUCT readers'): the element a
+    data set lacks (a ``KeyError`` of its tag or an ``AttributeError`` of its keyword), else the error's first line.
+
+    >>> from pydicom.tag import Tag
+    >>> fault(KeyError(Tag(0x0020, 0x9113))), fault(AttributeError("'Dataset' object has no attribute 'Rows'"))
+    ('it lacks PlanePositionSequence (0020,9113)', 'it lacks Rows')
+    """
+    from pydicom.datadict import keyword_for_tag
+    from pydicom.tag import BaseTag
+
+    if isinstance(exc, KeyError) and exc.args and isinstance(exc.args[0], BaseTag):
+        return f"it lacks {keyword_for_tag(exc.args[0]) or 'an element'} {exc.args[0]}"
+    text = first_line(exc)
+    if isinstance(exc, AttributeError) and "has no attribute '" in text:
+        return "it lacks " + text.split("has no attribute '")[1].rstrip("'")
+    return text.rstrip(".")
+
+
 def segmentation_files(folder):
     """The segmentation files (SEG, RTSTRUCT) among a folder's DICOM files, by their SOPClassUID alone."""
     import pydicom

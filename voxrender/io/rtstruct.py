@@ -37,8 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ._shared import Volume, check_fits, first_line, identity_progress
-from .dicom import _BoundedFile, _is_dicom, damaged_file_errors
+from ._shared import Volume, check_fits, identity_progress
+from .dicom import _BoundedFile, _is_dicom, damaged_file_errors, fault
 
 SOP_CLASS = "1.2.840.10008.5.1.4.1.1.481.3"          # RT Structure Set Storage
 OVERLAP_RULE = "a voxel in two ROIs goes to the lower label (the lower ROINumber)"
@@ -296,7 +296,7 @@ def _read_dataset(path):
         sop_class, modality = str(dataset.get("SOPClassUID", "")), str(dataset.get("Modality", ""))
         dataset.get("SeriesInstanceUID")      # pydicom decodes a value when first asked: a damaged one fails here
     except damaged as exc:
-        raise InputError(f"cannot read RTSTRUCT {path}: {_why(exc)}; the file is damaged or not DICOM") from None
+        raise InputError(f"cannot read RTSTRUCT {path}: {fault(exc)}; the file is damaged or not DICOM") from None
     if not sop_class and not modality:
         raise InputError(f"{path} is not a DICOM RTSTRUCT (it has neither SOPClassUID nor Modality: not DICOM, or "
                          "damaged); give the RTSTRUCT file of the image's structures")
@@ -322,7 +322,7 @@ def _structures(dataset, path):
         if not frame_of_reference and items:
             frame_of_reference = str(items[0].get("ReferencedFrameOfReferenceUID", ""))
     except damaged as exc:
-        raise InputError(f"RTSTRUCT {path} has a damaged structure set ({_why(exc)}): each ROI needs a ROINumber") \
+        raise InputError(f"RTSTRUCT {path} has a damaged structure set ({fault(exc)}): each ROI needs a ROINumber") \
             from None
     if not numbers:
         raise InputError(f"RTSTRUCT {path} describes no ROIs (an empty or missing StructureSetROISequence); it "
@@ -356,7 +356,7 @@ def _contours(dataset, path, numbers):
                 else:
                     found[number].append(points)
     except damaged as exc:
-        raise InputError(f"RTSTRUCT {path} has a damaged ROIContourSequence ({_why(exc)}); the file is damaged") \
+        raise InputError(f"RTSTRUCT {path} has a damaged ROIContourSequence ({fault(exc)}); the file is damaged") \
             from None
     if not sum(len(f) for f in found.values()) and not any(skipped.values()):
         raise InputError(f"RTSTRUCT {path} describes {len(numbers)} ROIs but holds no contour (an empty or missing "
@@ -487,21 +487,3 @@ def _referenced_series(dataset):
     except damaged_file_errors():           # a damaged reference says nothing: the image cannot be checked
         return found
     return found
-
-
-def _why(exc):
-    """What pydicom's error says is wrong, for a message: the element a data set lacks (a ``KeyError`` of its tag,
-    an ``AttributeError`` of its keyword), else the error's first line.
-
-    >>> _why(AttributeError("'Dataset' object has no attribute 'ROINumber'"))
-    'it lacks ROINumber'
-    """
-    from pydicom.datadict import keyword_for_tag
-    from pydicom.tag import BaseTag
-
-    if isinstance(exc, KeyError) and exc.args and isinstance(exc.args[0], BaseTag):
-        return f"it lacks {keyword_for_tag(exc.args[0]) or 'an element'} {exc.args[0]}"
-    text = first_line(exc)
-    if isinstance(exc, AttributeError) and "has no attribute '" in text:
-        return "it lacks " + text.split("has no attribute '")[1].rstrip("'")
-    return text.rstrip(".")

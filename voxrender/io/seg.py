@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import InputError
 from ._shared import Reader, Volume, check_fits, check_holds, first_line, quiet_log
-from .dicom import _BoundedFile, _is_dicom, damaged_file_errors
+from .dicom import _BoundedFile, _is_dicom, damaged_file_errors, fault
 
 SOP_CLASSES = {"1.2.840.10008.5.1.4.1.1.66.4": "Segmentation Storage",
                "1.2.840.10008.5.1.4.1.1.66.7": "Label Map Segmentation Storage"}
@@ -110,7 +110,7 @@ def read_seg(path, progress):
     except InputError:
         raise
     except damaged as exc:
-        raise InputError(f"cannot read DICOM SEG {path}: {_why(exc)}; the file is damaged") from None
+        raise InputError(f"cannot read DICOM SEG {path}: {fault(exc)}; the file is damaged") from None
     if geometry is None:
         raise InputError(f"{path}: the frames of this SEG are not a stack of parallel, evenly spaced planes, so "
                          "they make no volume; the file is damaged or segments a non-volume image")
@@ -129,7 +129,7 @@ def read_seg(path, progress):
     except InputError:
         raise
     except damaged as exc:
-        raise InputError(f"cannot read the frames of DICOM SEG {path}: {_why(exc)}; the file is damaged") from None
+        raise InputError(f"cannot read the frames of DICOM SEG {path}: {fault(exc)}; the file is damaged") from None
     affine = np.asarray(geometry.affine, dtype=float)
     steps = affine[:3, [2, 1, 0]]                     # the patient step of voxel x (column), y (row), z (plane)
     spacing = np.linalg.norm(steps, axis=0)
@@ -159,7 +159,7 @@ def _read_dataset(path):
         raise InputError(f"{path} is not a DICOM file; the seg format reads a DICOM SEG file",
                          parameter="format") from None
     except damaged as exc:
-        raise InputError(f"cannot read DICOM SEG {path}: {_why(exc)}; the file is damaged") from None
+        raise InputError(f"cannot read DICOM SEG {path}: {fault(exc)}; the file is damaged") from None
     if sop_class not in SOP_CLASSES:
         modality = str(dataset.get("Modality", "")) or "no modality"
         raise InputError(f"{path} is a DICOM file but not a SEG (SOPClassUID {sop_class or 'missing'}, {modality}); "
@@ -273,25 +273,6 @@ def _frame_places(dataset, geometry, shape, names, path):
         raise InputError(f"DICOM SEG {path}: two frames of segment {again} lie on one plane; the file is damaged or "
                          "mixes segmentations")
     return numbers, planes
-
-
-def _why(exc):
-    """What a library's error says is wrong, for a message: the element a data set lacks (pydicom and highdicom
-    say it as a ``KeyError`` of its tag or an ``AttributeError`` of its keyword), else the error's first line.
-
-    >>> from pydicom.tag import Tag
-    >>> _why(KeyError(Tag(0x0020, 0x9113))), _why(AttributeError("'Dataset' object has no attribute 'Rows'"))
-    ('it lacks PlanePositionSequence (0020,9113)', 'it lacks Rows')
-    """
-    from pydicom.datadict import keyword_for_tag
-    from pydicom.tag import BaseTag
-
-    if isinstance(exc, KeyError) and exc.args and isinstance(exc.args[0], BaseTag):
-        return f"it lacks {keyword_for_tag(exc.args[0]) or 'an element'} {exc.args[0]}"
-    text = first_line(exc)
-    if isinstance(exc, AttributeError) and "has no attribute '" in text:
-        return "it lacks " + text.split("has no attribute '")[1].rstrip("'")
-    return text.rstrip(".")
 
 
 def _colour(description, highdicom):
