@@ -54,3 +54,9 @@ def test_every_reader_that_sniffs_answers_without_raising(tmp_path):
     for reader in io.READERS.values():
         if reader.sniff is not None:
             assert reader.sniff(tmp_path) is False and reader.sniff(tmp_path / "a.txt") is False
+
+
+def test_a_device_is_neither_a_file_nor_a_folder():
+    """Found by the fuzzing gate: a manifest row of /dev/null ended in NotADirectoryError (exit 1)."""
+    with pytest.raises(InputError, match="/dev/null is neither a file nor a folder"):
+        io.detect_format("/dev/null")

@@ -288,3 +288,16 @@ def test_nibabel_mending_a_header_prints_nothing(tmp_path, capfd):
     except InputError:
         pass
     assert capfd.readouterr().err == ""
+
+
+def test_a_workbench_label_table_keeps_its_colours(tmp_path):
+    """Code 30 (Connectome Workbench): nibabel's get_content raised NotImplementedError for it (found by the
+    fuzzing gate); its colours, unlike TotalSegmentator's, are the user's."""
+    import nibabel
+
+    image = nibabel.Nifti1Image(np.ones((4, 4, 4), np.uint8), np.eye(4))
+    image.header.extensions.append(nibabel.nifti1.Nifti1Extension(
+        30, b'<LabelTable><Label Key="1" Red="1" Green="0.5" Blue="0">cortex</Label></LabelTable>'))
+    nibabel.save(image, tmp_path / "wb.nii")
+    assert io.read_volume(tmp_path / "wb.nii").meta["label_table"] == {"1": {"name": "cortex",
+                                                                             "colour": [255, 128, 0]}}

@@ -93,6 +93,8 @@ def detect_format(path, raw=None):
     path = Path(path)
     if not path.exists():
         raise InputError(f"no such file or folder: {path}")
+    if not path.is_file() and not path.is_dir():
+        raise InputError(f"{path} is neither a file nor a folder (a device or a pipe); give a file or a folder")
     if raw is not None:
         return "raw"
     if path.is_dir() and next(path.iterdir(), None) is None:

@@ -120,7 +120,7 @@ def _label_table(path, header):
     import xml.etree.ElementTree as ElementTree
 
     for extension in getattr(header, "extensions", ()):
-        content = extension.get_content()
+        content = extension.content          # raw bytes whatever the code (get_content unmangles, not for all)
         if not isinstance(content, bytes) or b"<LabelTable" not in content:
             continue
         try:
