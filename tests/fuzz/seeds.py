@@ -174,15 +174,18 @@ def dicom_seg(case, values, spacing=SPACING, direction=None):
 
 
 def dicom_rtstruct(case, values, spacing=SPACING, direction=None):
-    """A CT series and its RTSTRUCT (the two labels' contours, traced slice by slice) written by pydicom;
-    ``--labels-from`` the RTSTRUCT."""
+    """A CT series and its RTSTRUCT (the two labels' contours, traced slice by slice in the series' own planes, so
+    that they are planar as a planning system's are) written by pydicom; ``--labels-from`` the RTSTRUCT."""
     from rtstruct_files import references_of, write_rtstruct_of_labels
 
     from voxrender.io import patient_affine
 
-    _, _, volume = _ct_for_labels(case, values, spacing, direction)
-    labels = _two_labels(volume.values)
-    path = write_rtstruct_of_labels(case / INPUT / "rs.dcm", labels, patient_affine(volume), ["GTV", "PTV"],
+    from voxrender.io import read_volume
+
+    _ct_for_labels(case, values, spacing, direction)
+    stored = read_volume(case / INPUT / "ct", reorient=False)   # traced in the series' own slices, as it is read
+    path = write_rtstruct_of_labels(case / INPUT / "rs.dcm", _two_labels(stored.values), patient_affine(stored),
+                                    ["GTV", "PTV"],
                                     [(255, 0, 0), (0, 0, 255)],
                                     **references_of(sorted((case / INPUT / "ct").iterdir())))
     return Seed(f"{INPUT}/ct", ["--labels-from", f"{INPUT}/rs.dcm"], [path])
