@@ -178,9 +178,7 @@ def dicom_rtstruct(case, values, spacing=SPACING, direction=None):
     that they are planar as a planning system's are) written by pydicom; ``--labels-from`` the RTSTRUCT."""
     from rtstruct_files import references_of, write_rtstruct_of_labels
 
-    from voxrender.io import patient_affine
-
-    from voxrender.io import read_volume
+    from voxrender.io import patient_affine, read_volume
 
     _ct_for_labels(case, values, spacing, direction)
     stored = read_volume(case / INPUT / "ct", reorient=False)   # traced in the series' own slices, as it is read
