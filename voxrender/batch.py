@@ -223,6 +223,9 @@ def read_manifest(path):
     path = Path(path)
     if not path.is_file():
         raise InputError(f"no such manifest: {path}")
+    nul = path.read_bytes().find(b"\0")
+    if nul >= 0:                                          # no path or value can hold one (csv reads it as text)
+        raise InputError(f"manifest {path} holds a NUL byte (at byte {nul}); it is damaged or is not text")
     try:
         if path.suffix.lower() == ".toml":
             rows = tomllib.loads(path.read_text()).get("input", [])
