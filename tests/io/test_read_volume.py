@@ -186,3 +186,11 @@ def test_sizes_that_round_alike_are_given_in_bytes():
         check_holds("x.nrrd", 15840, 15841, exact=True)
     with pytest.raises(InputError, match="holds 9.29 kB of voxels, of the 15.8 kB its header promises"):
         check_holds("x.nii", 15840, 9290)
+
+
+@pytest.mark.parametrize("name", ["x.nii.gz", "x.nrrd", "seg.dcm", "x.npy", "x.tif", "x.mha"])
+def test_an_empty_file_says_so_whatever_its_format(tmp_path, name):
+    """Each reader said it its own way, and an empty .dcm was told to 'give the folder that holds the series'."""
+    (tmp_path / name).write_bytes(b"")
+    with pytest.raises(InputError, match=f"{name} is an empty file"):
+        io.read_volume(tmp_path / name)

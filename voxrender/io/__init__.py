@@ -167,6 +167,8 @@ def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, fra
         format = detect_format(path, raw)
     elif not path.exists():
         raise InputError(f"no such file or folder: {path}")
+    if path.is_file() and not path.stat().st_size:       # every reader would say it its own way, or not at all
+        raise InputError(f"{path} is an empty file (0 bytes); it was cut off or not written")
     reader = READERS[format]
     given = {"raw": raw, "series": series, "frame": frame}
     for name, value in given.items():
