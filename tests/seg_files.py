@@ -14,6 +14,20 @@ SOURCE_DEFAULTS = {"PatientName": "Test^Phantom", "PatientID": "P1", "PatientBir
                    "ReferringPhysicianName": "", "SeriesNumber": 1}
 
 
+SHAPE = (12, 20, 24)                                    # [z, y, x] of the test SEGs' CT
+
+
+def blobs(shape=SHAPE):
+    """A label map [z, y, x] of three blobs: a ball, a box and a slab on two slices only (a SEG stores only the
+    frames that hold a segment, so its grid is shorter than its CT's)."""
+    z, y, x = np.mgrid[:shape[0], :shape[1], :shape[2]]
+    labels = np.zeros(shape, np.uint8)
+    labels[(x - 8) ** 2 + (y - 9) ** 2 + ((z - 5) * 2.5) ** 2 <= 36] = 1
+    labels[2:9, 3:8, 15:21] = 2
+    labels[8:10, 12:18, 2:22] = 3
+    return labels
+
+
 def complete_sources(paths, frame_of_reference=None):
     """The CT slices in ``paths``, completed on disk with what highdicom asks of a SEG's source images (only what
     they lack, one FrameOfReferenceUID for the series), read back as data sets in the order of ``paths``.

@@ -7,7 +7,7 @@ import shutil
 import imageio.v3 as iio
 import numpy as np
 import pytest
-from seg_files import write_ct, write_ct_and_seg
+from seg_files import blobs, write_ct, write_ct_and_seg
 from test_cli import assert_bad_input, run
 
 from voxrender import io
@@ -16,23 +16,13 @@ from voxrender.output import write_nifti
 NAMES = ["liver", "spleen", "kidney_left"]
 
 
-def organs(shape=(14, 24, 28)):
-    """Three labelled blobs [z, y, x], the third only on a few slices (a SEG stores only the frames it needs)."""
-    z, y, x = np.mgrid[:shape[0], :shape[1], :shape[2]]
-    labels = np.zeros(shape, np.uint8)
-    labels[(x - 9) ** 2 + (y - 11) ** 2 + ((z - 7) * 2) ** 2 <= 36] = 1
-    labels[4:10, 14:20, 16:24] = 2
-    labels[9:12, 3:8, 18:25] = 3
-    return labels
-
-
 @pytest.fixture
 def study(tmp_path):
     """A CT series, its SEG of :func:`organs`, and the same labels as a NIfTI on the CT's grid (written at the CT's
     origin, so that it pairs by position as the SEG does)."""
-    ct, seg = write_ct_and_seg(tmp_path, organs(), NAMES)
+    ct, seg = write_ct_and_seg(tmp_path, blobs(), NAMES)
     volume = io.read_volume(ct)
-    nifti = write_nifti(tmp_path / "labels.nii.gz", organs(), volume.spacing, volume.meta["origin"])
+    nifti = write_nifti(tmp_path / "labels.nii.gz", blobs(), volume.spacing, volume.meta["origin"])
     return ct, seg, nifti
 
 
@@ -52,7 +42,7 @@ def test_a_ct_with_its_seg_renders_the_label_image_of_the_map_it_was_written_fro
     assert set(np.unique(from_seg)) == {0, 1, 2, 3}
     assert [(v["label"], v["name"]) for v in listed] == list(enumerate(NAMES, 1))           # names from the SEG
     voxel_ml = float(np.prod(io.read_volume(ct).spacing)) / 1000
-    assert [v["ml"] for v in listed] == [round(int((organs() == k).sum()) * voxel_ml, 3) for k in (1, 2, 3)]
+    assert [v["ml"] for v in listed] == [round(int((blobs() == k).sum()) * voxel_ml, 3) for k in (1, 2, 3)]
 
 
 def test_a_seg_alone_renders_on_its_own_geometry_and_in_the_study_folder_beside_its_ct(tmp_path, study):
@@ -69,7 +59,7 @@ def test_a_seg_alone_renders_on_its_own_geometry_and_in_the_study_folder_beside_
 def test_a_seg_of_another_series_is_refused_naming_both(tmp_path, study):
     _, seg, _ = study
     other = tmp_path / "other"
-    write_ct(other, organs().shape)
+    write_ct(other, blobs().shape)
     result = run("render", other, "--labels-from", seg, "-o", tmp_path / "x.png")
     assert_bad_input(result, "--labels-from", "was made on series", "but the image is series")
     assert not (tmp_path / "x.png").exists()
@@ -88,7 +78,7 @@ def test_a_ct_with_its_rtstruct_renders_the_label_image_of_the_masks_it_outlines
 
     ct, _, nifti = study
     volume = io.read_volume(ct)
-    structure_set = write_rtstruct_of_labels(tmp_path / "rs.dcm", organs(), io.patient_affine(volume), NAMES,
+    structure_set = write_rtstruct_of_labels(tmp_path / "rs.dcm", blobs(), io.patient_affine(volume), NAMES,
                                              [(220, 60, 40), (60, 160, 60), (40, 90, 200)],
                                              **references_of(sorted(ct.iterdir())))
     from_map, _ = label_image(tmp_path, "map", ct, "--labels-from", nifti)
@@ -98,10 +88,10 @@ def test_a_ct_with_its_rtstruct_renders_the_label_image_of_the_masks_it_outlines
                                                           ("kidney_left", [40, 90, 200])]
     summary = json.loads(run("info", ct, "--labels-from", structure_set, "--json").stdout)
     assert {v["name"]: v["voxels"] for v in summary["labels"].values()} == \
-        {name: int((organs() == k).sum()) for k, name in enumerate(NAMES, 1)}
+        {name: int((blobs() == k).sum()) for k, name in enumerate(NAMES, 1)}
     assert_bad_input(run("render", structure_set, "-o", tmp_path / "x.png"), "is an RTSTRUCT", "its CT series")
     other = tmp_path / "other"
-    write_ct(other, organs().shape)
+    write_ct(other, blobs().shape)
     assert_bad_input(run("render", other, "--labels-from", structure_set, "-o", tmp_path / "x.png"),
                      "--labels-from", str(volume.meta["series"]))
 

@@ -5,25 +5,15 @@ import pydicom
 import pytest
 from conftest import data_path
 from formats import refused_cuts
-from seg_files import complete_sources, write_ct, write_ct_and_seg, write_seg
+from seg_files import SHAPE, blobs, complete_sources, write_ct, write_ct_and_seg, write_seg
 
 from voxrender import io
 from voxrender.errors import InputError
 from voxrender.io import seg as seg_reader
 
-SHAPE, SPACING = (12, 20, 24), (0.7, 0.8, 2.5)          # [z, y, x]; spacing (x, y, z) in mm
+SPACING = (0.7, 0.8, 2.5)                               # spacing (x, y, z) in mm
 NAMES = ["liver", "spleen", "kidney"]
 COLOURS = [(221, 130, 101), (157, 108, 162), (185, 102, 83)]
-
-
-def blobs(shape=SHAPE):
-    """A label map [z, y, x] of three blobs: a ball, a box and a slab on two slices only."""
-    z, y, x = np.mgrid[:shape[0], :shape[1], :shape[2]]
-    labels = np.zeros(shape, np.uint8)
-    labels[(x - 8) ** 2 + (y - 9) ** 2 + ((z - 5) * 2.5) ** 2 <= 36] = 1
-    labels[2:9, 3:8, 15:21] = 2
-    labels[8:10, 12:18, 2:22] = 3
-    return labels
 
 
 def read(path):
