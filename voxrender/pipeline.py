@@ -231,9 +231,7 @@ def _encode_labels(volume, read, prepare, meta, progress):
         labels[~remove_small_objects(labels > 0, max_size=prepare.min_object - 1, connectivity=3)] = 0
     if prepare.threshold is None and prepare.min_object <= 1:   # the labels as given: their mL on their own grid
         voxel_ml = float(np.prod(volume.spacing)) / 1000
-        meta["label_ml"] = {str(label): round(count * voxel_ml, 3) for label, count in
-                            prep.label_counts(prep.crop(label_volume.values, prepare.crop)).items()
-                            if label in info["labels"]}
+        meta["label_ml"] = {str(label): round(count * voxel_ml, 3) for label, count in info["voxels"].items()}
     if selection.separate:
         table = label_volume.meta.get("label_table")
         if table:

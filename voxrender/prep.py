@@ -443,7 +443,8 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
     labels : ndarray of uint16, ``[z, y, x]``
         The chosen labels; 0 elsewhere (and everywhere, with ``separate=False``, the object is ``labels > 0``).
     info : dict
-        ``labels`` (the chosen labels present), ``voxel`` (mm), ``spacing``.
+        ``labels`` (the chosen labels present), ``voxels`` (``{label: count}`` of the chosen labels in the
+        cropped map, before resampling), ``voxel`` (mm), ``spacing``.
 
     Examples
     --------
@@ -457,7 +458,8 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
     values = _crop(volume.values, crop)
     source = volume.meta.get("source", "the label map")
     check_labels(values, source)
-    present = np.asarray(sorted(label_counts(values)), np.int64)          # a count, not a sort of every voxel
+    counts = label_counts(values)                                         # a count, not a sort of every voxel
+    present = np.asarray(sorted(counts), np.int64)
     if not len(present):
         raise InputError(f"{source} holds no label: every voxel is 0 (background)" + (" in the crop" if crop else ""))
     chosen = present if selection.chosen is None else np.asarray(sorted(set(selection.chosen)))
@@ -477,7 +479,8 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
     labels = np.where(np.isin(values, chosen), values, 0).astype(np.uint16)
     if not labels.any():
         raise InputError("the chosen labels vanish at this voxel size; choose a smaller one", parameter="voxel")
-    return labels, {"labels": [int(v) for v in chosen], "voxel": voxel, "spacing": spacing}
+    return labels, {"labels": [int(v) for v in chosen], "voxels": {int(v): counts[int(v)] for v in chosen},
+                    "voxel": voxel, "spacing": spacing}
 
 
 def label_counts(values):
