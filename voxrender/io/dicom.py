@@ -21,8 +21,10 @@ from ._shared import Reader, Volume, check_fits, check_spacing, fill_stack, firs
 SUFFIXES = (".dcm", ".dicom", ".ima")
 # Objects a study folder holds beside its slices that are not slices: segmentations (read as the labels of their
 # image, by voxrender.io.seg and voxrender.io.rtstruct), structured reports, presentation states, plans.
-SEGMENTATIONS = {"1.2.840.10008.5.1.4.1.1.66.4": "SEG", "1.2.840.10008.5.1.4.1.1.66.7": "SEG (label map)",
-                 "1.2.840.10008.5.1.4.1.1.481.3": "RTSTRUCT"}
+SEG_CLASSES = {"1.2.840.10008.5.1.4.1.1.66.4": "SEG",                  # Segmentation Storage
+               "1.2.840.10008.5.1.4.1.1.66.7": "SEG (label map)"}     # Label Map Segmentation Storage
+RTSTRUCT_CLASS = "1.2.840.10008.5.1.4.1.1.481.3"                       # RT Structure Set Storage
+SEGMENTATIONS = {**SEG_CLASSES, RTSTRUCT_CLASS: "RTSTRUCT"}
 NOT_IMAGES = ("SR", "PR", "KO", "RTPLAN", "RTRECORD", "REG", "DOC")
 # The header values that group, sort and place the slices.
 HEADER_KEYWORDS = ("Rows", "Columns", "Modality", "SOPClassUID", "SeriesInstanceUID", "SeriesDescription",

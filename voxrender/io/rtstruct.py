@@ -38,9 +38,8 @@ import numpy as np
 
 from ..errors import InputError
 from ._shared import Volume, check_fits, identity_progress
-from .dicom import _BoundedFile, _is_dicom, damaged_file_errors, fault
+from .dicom import RTSTRUCT_CLASS, _BoundedFile, _is_dicom, damaged_file_errors, fault
 
-SOP_CLASS = "1.2.840.10008.5.1.4.1.1.481.3"          # RT Structure Set Storage
 OVERLAP_RULE = "a voxel in two ROIs goes to the lower label (the lower ROINumber)"
 CLOSED_TYPES = ("CLOSED_PLANAR", "CLOSEDPLANAR_XOR")
 OPEN_TYPES = ("POINT", "OPEN_PLANAR", "OPEN_NONPLANAR")
@@ -74,7 +73,7 @@ def is_rtstruct(path):
     try:
         with _BoundedFile(path) as stream:
             ds = pydicom.dcmread(stream, stop_before_pixels=True, specific_tags=["SOPClassUID", "Modality"])
-        return str(ds.get("SOPClassUID", "")) == SOP_CLASS or str(ds.get("Modality", "")) == "RTSTRUCT"
+        return str(ds.get("SOPClassUID", "")) == RTSTRUCT_CLASS or str(ds.get("Modality", "")) == "RTSTRUCT"
     except damaged_file_errors():              # not DICOM, or too damaged to tell: not an RTSTRUCT
         return False
 
@@ -300,7 +299,7 @@ def _read_dataset(path):
     if not sop_class and not modality:
         raise InputError(f"{path} is not a DICOM RTSTRUCT (it has neither SOPClassUID nor Modality: not DICOM, or "
                          "damaged); give the RTSTRUCT file of the image's structures")
-    if sop_class != SOP_CLASS and modality != "RTSTRUCT":
+    if sop_class != RTSTRUCT_CLASS and modality != "RTSTRUCT":
         raise InputError(f"{path} is not an RTSTRUCT (SOPClassUID {sop_class or 'missing'}, modality "
                          f"{modality or 'missing'}); give the RTSTRUCT file of the image's structures")
     return dataset

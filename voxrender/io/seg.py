@@ -30,10 +30,8 @@ import numpy as np
 
 from ..errors import InputError
 from ._shared import Reader, Volume, check_fits, check_holds, first_line, quiet_log
-from .dicom import _BoundedFile, _is_dicom, damaged_file_errors, fault
+from .dicom import SEG_CLASSES, _BoundedFile, _is_dicom, damaged_file_errors, fault
 
-SOP_CLASSES = {"1.2.840.10008.5.1.4.1.1.66.4": "Segmentation Storage",
-               "1.2.840.10008.5.1.4.1.1.66.7": "Label Map Segmentation Storage"}
 OVERLAP_RULE = "a voxel in two segments goes to the lower segment number"
 
 
@@ -51,7 +49,7 @@ def is_seg(path):
     try:
         with _BoundedFile(path) as stream:
             ds = pydicom.dcmread(stream, stop_before_pixels=True, specific_tags=["SOPClassUID"])
-        return str(ds.get("SOPClassUID", "")) in SOP_CLASSES
+        return str(ds.get("SOPClassUID", "")) in SEG_CLASSES
     except damaged_file_errors():              # not DICOM, or too damaged to tell: not a SEG
         return False
 
@@ -160,7 +158,7 @@ def _read_dataset(path):
                          parameter="format") from None
     except damaged as exc:
         raise InputError(f"cannot read DICOM SEG {path}: {fault(exc)}; the file is damaged") from None
-    if sop_class not in SOP_CLASSES:
+    if sop_class not in SEG_CLASSES:
         modality = str(dataset.get("Modality", "")) or "no modality"
         raise InputError(f"{path} is a DICOM file but not a SEG (SOPClassUID {sop_class or 'missing'}, {modality}); "
                          "give a DICOM SEG file, or a series folder as an image", parameter="format")
