@@ -50,8 +50,7 @@ def read_nrrd(path, progress, frame=None):
         raise InputError(f"{path}: its data file {exc.filename or ''} is missing") from None
     except (nrrd.NRRDError, OSError, EOFError, ValueError, KeyError, TypeError, IndexError, zlib.error,
             StopIteration) as exc:                  # IndexError: pynrrd parsing an empty vector
-        what = "it is an empty file" if isinstance(exc, StopIteration) else first_line(exc)
-        raise InputError(f"cannot read {path} as NRRD: {what}") from None
+        raise InputError(f"cannot read {path} as NRRD: {first_line(exc)}") from None
     directions = _space_directions(path, header, values.ndim)
     axes = [0, 1, 2]                                        # the header's axes (fastest first) of the volume read
     if values.ndim == 4:
