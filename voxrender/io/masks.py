@@ -162,16 +162,12 @@ def _read_mask(file):
 def _on_grid(volume, found, first, file, first_file):
     """Where a mask is on the first mask's grid: as found, on the same grid; else placed by patient position."""
     from .. import grids
-    from . import patient_affine
 
-    if volume.shape == first.shape and grids.relate(volume.shape, patient_affine(volume), first.shape,
-                                                    patient_affine(first)).same:
-        return found
     if found is None:
         return None
     placed = grids.pair(volume, first, label_name=str(file), image_name=f"the first mask, {first_file.name}",
                         parameter=None)
-    return _where(placed, file)
+    return found if placed is volume.values else _where(placed, file)     # pair hands back a grid that is the same
 
 
 def _where(values, file):
