@@ -1,0 +1,218 @@
+"""The batch's index page, in a real browser: headless Chromium driven by Playwright, the page opened from the disk.
+
+Without the playwright package or /usr/bin/chromium the browser tests skip, saying which is absent; under CI=true
+they fail instead (CI installs both, and must run them).
+"""
+
+import os
+from pathlib import Path
+from urllib.parse import unquote, urlparse
+
+import numpy as np
+import pytest
+
+from voxrender.errors import InputError
+from voxrender.index_page import StudyRow, missing_labels, write_index
+from voxrender.output import write_png
+
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+SCREENSHOT = Path("/tmp/index/screenshot.png")
+FRAMES = 12
+ERROR = 'cannot read <b>&"x.dcm": not a DICOM file'
+
+
+def label(number, name, colour, voxels):
+    return {"label": number, "name": name, "colour": colour, "voxels": voxels, "ml": voxels / 1000}
+
+
+BRAIN = label(1, "brain", [230, 160, 140], 1_200_000)
+SKULL = label(2, "skull", [240, 235, 210], 800_000)
+
+
+def make_batch(folder):
+    """A batch's folder: four studies, one with a turntable whose frames differ, one with a missing label (and names
+    needing URL quoting), one with an overlap, one failed."""
+    rng = np.random.default_rng(0)
+
+    def png(relative, shape=(96, 128)):
+        path = folder / relative
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_png(path, rng.integers(0, 256, (*shape, 3), dtype=np.uint8))
+        return relative
+
+    frames = []
+    for k in range(FRAMES):     # a light bar that walks across: every frame a different picture
+        frame = np.full((96, 96), 40, np.uint8)
+        frame[:, 8 * k:8 * k + 8] = 200
+        frames.append(f"head/turn/frame_{k:02d}.png")
+        (folder / "head/turn").mkdir(parents=True, exist_ok=True)
+        write_png(folder / frames[-1], frame)
+    odd = "chest #2 100%"
+    return [
+        StudyRow("head", "/data/head", sheet=png("head/sheet.png", (200, 300)),
+                 pictures=[("front", png("head/front.png")), ("left", png("head/left.png"))],
+                 turntable=frames, labels=[BRAIN, SKULL], seconds=12.25),
+        StudyRow(odd, f"/data/{odd}", sheet=png(f"{odd}/sheet.png", (200, 300)),
+                 pictures=[("front", png(f"{odd}/front view.png"))], labels=[BRAIN], seconds=8.0),
+        StudyRow("abdomen", "/data/abdomen", sheet=png("abdomen/sheet.png", (200, 300)),
+                 pictures=[("front", png("abdomen/front.png"))], labels=[BRAIN, SKULL],
+                 overlaps=[{"names": ["brain", "skull"], "voxels": 7}], seconds=9.5),
+        StudyRow("broken", "/data/broken", error=ERROR, seconds=0.1),
+    ]
+
+
+# -- the page's text, without a browser ------------------------------------------------------------------------------
+
+def test_missing_labels_by_name_across_the_batch():
+    studies = [StudyRow("a", "a", labels=[BRAIN, SKULL]),
+               StudyRow("b", "b", labels=[BRAIN, {**SKULL, "voxels": 0}]),   # present but empty: missing
+               StudyRow("c", "c", labels=[SKULL]),
+               StudyRow("d", "d", error="failed", labels=[])]                # failed: its flag is its failure
+    assert missing_labels(studies) == {"b": ["skull"], "c": ["brain"]}
+    assert missing_labels([StudyRow("alone", "x", labels=[BRAIN])]) == {}
+    # a label held only by a failed study is nobody's missing label
+    assert missing_labels([StudyRow("a", "a"), StudyRow("d", "d", error="x", labels=[BRAIN])]) == {}
+
+
+def test_page_escapes_text_and_quotes_paths(tmp_path):
+    studies = make_batch(tmp_path)
+    write_index(tmp_path / "index.html", studies, title="QC <batch> & co")
+    page = (tmp_path / "index.html").read_text()
+    assert ERROR not in page and '<b>&"' not in page
+    assert "cannot read &lt;b&gt;&amp;&quot;x.dcm&quot;" in page
+    assert "<title>QC &lt;batch&gt; &amp; co</title>" in page
+    assert 'href="chest%20%232%20100%25/front%20view.png"' in page
+    assert "http" not in page.replace('name="viewport"', "")   # nothing asked of the network
+    assert not list(tmp_path.glob(".index.html*"))              # written atomically: no temporary left
+
+
+def test_page_in_a_missing_folder_is_refused(tmp_path):
+    with pytest.raises(InputError, match="does not exist"):
+        write_index(tmp_path / "no such folder" / "index.html", [])
+
+
+# -- in the browser ----------------------------------------------------------------------------------------------------
+
+def _need_browser():
+    """Skip (fail under CI=true) unless Playwright and the system's Chromium are both there."""
+    absent = []
+    try:
+        import playwright.sync_api  # noqa: F401
+    except ImportError:
+        absent.append("the playwright package is not installed (pip install playwright)")
+    if not Path(CHROMIUM).exists():
+        absent.append(f"{CHROMIUM} is absent (apt-get install chromium)")
+    if absent:
+        message = "browser test: " + " and ".join(absent)
+        if os.environ.get("CI") == "true":
+            pytest.fail(f"{message}; CI=true needs it")
+        pytest.skip(message)
+
+
+@pytest.fixture(scope="module")
+def opened(tmp_path_factory):
+    """The page of a made batch, open in headless Chromium; with the console's and the page's errors."""
+    _need_browser()
+    from playwright.sync_api import sync_playwright
+
+    folder = tmp_path_factory.mktemp("batch")
+    write_index(folder / "index.html", make_batch(folder))
+    errors = []
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        try:
+            page = browser.new_page(viewport={"width": 1280, "height": 800})
+            page.set_default_timeout(10_000)
+            page.on("console", lambda message: message.type == "error" and errors.append(message.text))
+            page.on("pageerror", lambda error: errors.append(str(error)))
+            page.goto((folder / "index.html").as_uri())
+            yield page, folder, errors
+        finally:
+            browser.close()
+
+
+def test_page_loads_without_errors_and_every_image_decodes(opened):
+    page, folder, errors = opened
+    decoded = page.evaluate("""async () => {
+        const images = [...document.images];
+        images.forEach(img => { img.loading = "eager"; });     // load the lazy thumbnails too
+        return Promise.all(images.map(img => img.decode().then(() => [img.src, img.naturalWidth],
+                                                                () => [img.src, 0])));
+    }""")
+    assert len(decoded) == 1 + 3 + 4    # the turntable, the sheets, the views
+    assert [src for src, width in decoded if width == 0] == []
+    assert errors == []
+
+
+def test_every_link_is_a_file_in_the_folder(opened):
+    page, folder, _ = opened
+    urls = page.evaluate("""() => [
+        ...[...document.querySelectorAll("a[href]")].map(a => a.href),
+        ...[...document.querySelectorAll("img[src]")].map(img => img.src),
+        ...[...document.querySelectorAll("img.turntable")].flatMap(
+            img => JSON.parse(img.dataset.frames).map(f => new URL(f, document.baseURI).href)),
+    ]""")
+    assert len(urls) == 7 + 8 + FRAMES   # the links (sheets, views), the images (and the turntable), its frames
+    for url in urls:
+        parts = urlparse(url)
+        assert parts.scheme == "file", url
+        path = Path(unquote(parts.path))
+        assert path.is_file() and path.is_relative_to(folder), url
+    assert (folder / "chest #2 100%/front view.png").as_uri() in urls
+
+
+def test_turntable_follows_the_pointer(opened):
+    page, folder, errors = opened
+    turntable = page.locator("img.turntable")
+    turntable.scroll_into_view_if_needed()
+    box = turntable.bounding_box()
+    y = box["y"] + box["height"] / 2
+
+    def frame_at(k):
+        """Put the pointer over frame k's share of the picture's width; the frame the picture then shows."""
+        page.mouse.move(box["x"] + (k + 0.5) * box["width"] / FRAMES, y)
+        return turntable.evaluate("img => img.src")
+
+    first = turntable.evaluate("img => img.src")
+    assert first == (folder / "head/turn/frame_00.png").as_uri()
+    page.mouse.move(box["x"] + 1, y)
+    page.mouse.down()
+    shown = [frame_at(k) for k in (3, 7, 11, 5)]
+    page.mouse.move(box["x"] + box["width"] + 200, y)      # dragged past the edge: held at the last frame
+    beyond = turntable.evaluate("img => img.src")
+    page.mouse.up()
+    assert shown == [(folder / f"head/turn/frame_{k:02d}.png").as_uri() for k in (3, 7, 11, 5)]
+    assert beyond == (folder / "head/turn/frame_11.png").as_uri()
+    assert turntable.evaluate("img => img.complete && img.naturalWidth") == 96
+    assert errors == []
+
+
+def test_flags_errors_and_counts_are_shown(opened):
+    page, folder, _ = opened
+    rows = page.locator("table.studies > tbody > tr")
+    assert rows.count() == 4
+    summary = " ".join(page.locator(".summary").inner_text().split())
+    for count in ("4 studies", "1 failed", "1 with missing labels", "1 with overlaps"):
+        assert count in summary
+
+    head, chest, abdomen, broken = (rows.nth(k) for k in range(4))
+    assert head.get_attribute("class") == "clean" and head.locator(".flag").count() == 0
+    assert chest.locator(".flag").inner_text().lower() == "missing 1"
+    assert chest.locator("tr.missing").inner_text().split()[:2] == ["skull", "missing"]
+    assert abdomen.locator(".flag").inner_text().lower() == "overlap 1"
+    assert "overlap: brain / skull, 7 voxels" in abdomen.locator("tr.overlap").inner_text()
+    assert broken.get_attribute("class") == "failed" and broken.locator(".flag").inner_text().lower() == "failed"
+    error = broken.locator(".error")
+    assert error.inner_text() == ERROR                  # shown as written, not read as markup
+    assert error.locator("b").count() == 0
+    assert error.evaluate("e => getComputedStyle(e).color") == "rgb(176, 0, 32)"
+
+    SCREENSHOT.parent.mkdir(parents=True, exist_ok=True)
+    page.screenshot(path=SCREENSHOT, full_page=True)
+
+    page.locator("#only-flagged").check()              # the clean study hides; the flagged ones stay
+    assert [rows.nth(k).is_visible() for k in range(4)] == [False, True, True, True]
+    page.locator("#only-flagged").uncheck()
+    assert head.is_visible()
