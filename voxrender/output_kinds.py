@@ -13,6 +13,7 @@ from collections.abc import Callable
 from dataclasses import MISSING, dataclass
 
 from . import output, shade
+from .secondary_capture import write_dicom_output  # light: it imports pydicom when it writes
 
 
 @dataclass(frozen=True)
@@ -112,6 +113,9 @@ OUTPUTS = {
     "label_png": OutputKind(
         ".png", "Save the label image (16-bit, one label per pixel, 0 background); in a batch, a pattern.",
         lambda path, result, about: output.write_png(path, result.labels), "label-png", LABELS),
+    "dicom": OutputKind(
+        ".dcm", "Save the picture as an RGB DICOM Secondary Capture in a new series of the source study; in a batch, "
+        "a pattern.", write_dicom_output, "dicom-out"),
 }
 
 
