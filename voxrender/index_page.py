@@ -186,7 +186,7 @@ def _row(number, study, missing):
         empty = ' class="missing"' if label["name"] in missing else ""
         labels.append(f'<tr{empty}><td><span class="swatch" style="background:rgb({red},{green},{blue})"></span>'
                       f'{_text(label["name"])}</td><td class="n">{int(label["voxels"]):,}</td>'
-                      f'<td class="n">{float(label["ml"]):.1f} mL</td></tr>')
+                      f'<td class="n">{float(label["ml"]):,.1f} mL</td></tr>')
     present = {label["name"] for label in study.labels}
     labels += [f'<tr class="missing"><td>{_text(name)}</td><td colspan="2">missing</td></tr>'
                for name in missing if name not in present]
@@ -210,7 +210,7 @@ table.studies{border-collapse:collapse;width:100%}
  border-bottom:1px solid #bbb;z-index:1}
 .studies>tbody>tr>td{padding:4px 6px;border-bottom:1px solid #e2e2e2;vertical-align:top}
 tr.failed{background:#fdecee}
-.name{font-weight:600;word-break:break-all}.input{color:#666;font-size:11px;word-break:break-all}
+.name{font-weight:600;overflow-wrap:anywhere}.input{color:#666;font-size:11px;overflow-wrap:anywhere}
 .error{color:#b00020;font-weight:600;white-space:pre-wrap;max-width:60em;margin-bottom:4px}
 .flag{display:inline-block;margin:0 3px 3px 0;padding:1px 6px;border-radius:3px;font-size:11px;font-weight:700;
  text-transform:uppercase;white-space:nowrap}
