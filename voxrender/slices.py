@@ -387,7 +387,7 @@ def _draw_overlay(rgb, labels, lookup, overlay, opacity):
         from skimage.segmentation import find_boundaries
 
         # "inner": the label's own pixels next to another label or the background, so one pixel wide
-        edge = find_boundaries(labels, mode="inner") & (labels > 0)
+        edge = find_boundaries(labels, mode="inner")
         rgb[edge] = colours[edge]
 
 
