@@ -2,6 +2,7 @@
 
 import os
 import stat
+import warnings
 
 import highdicom as hd
 import numpy as np
@@ -131,6 +132,11 @@ def test_one_slice_or_an_enhanced_file_names_the_series(ct, tmp_path):
 
 def test_a_folder_of_two_series_is_chosen_from(ct, tmp_path):
     folder, sources = ct
+    seg = pydicom.Dataset()             # a segmentation beside the slices is not one of the series to choose from
+    seg.SOPClassUID, seg.SOPInstanceUID = "1.2.840.10008.5.1.4.1.1.66.4", pydicom.uid.generate_uid()
+    seg.SeriesInstanceUID, seg.Modality = pydicom.uid.generate_uid(), "SEG"
+    seg.save_as(folder / "seg.dcm", implicit_vr=True, little_endian=True)
+    assert len(dicom_study(folder).images) == SHAPE[0]
     write_series(folder, np.zeros((2, 4, 4)), names=["other1.dcm", "other2.dcm"])
     with pytest.raises(InputError, match="holds 2 DICOM series") as error:
         dicom_study(folder)
@@ -199,6 +205,8 @@ def test_describe_and_its_limit(ct, tmp_path):
     text = describe(result, {"object": {"threshold": "-100:300"}, "projection": "mip"})
     assert text == f"voxrender {voxrender.__version__}: octree, view alpha 10 beta 20.5 gamma 30, projection mip, " \
                    "threshold -100:300"
+    projection = SimpleNamespace(image=SimpleNamespace(method="mip", view=voxrender.View(90, 0, 0)), projection="mip")
+    assert describe(projection, {"object": {}}).endswith(": view alpha 90 beta 0 gamma 0, projection mip")
     long = "x" * 2000
     write_secondary_capture(tmp_path / "p.dcm", result.rgb, dicom_study(ct[0]), long)
     assert pydicom.dcmread(tmp_path / "p.dcm").DerivationDescription == long[:1024]
@@ -209,3 +217,13 @@ def test_rgb_must_be_8_bit_colour(ct, tmp_path):
     with pytest.raises(InputError, match=r"\(H, W, 3\) uint8") as error:
         write_secondary_capture(tmp_path / "p.dcm", np.zeros((4, 4), np.uint16), study, "grey")
     assert error.value.parameter == "rgb"
+
+
+def test_the_source_names_are_copied_without_warnings(ct, tmp_path):
+    source = pydicom.dcmread(sorted(ct[0].iterdir())[0], stop_before_pixels=True)
+    source.PatientName, source.ReferringPhysicianName = "Eve", "Unknown"      # one word, as vhf_head has them
+    study = DicomStudy(source, (), source.SeriesInstanceUID, "ct")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        write_secondary_capture(tmp_path / "p.dcm", np.zeros((4, 4, 3), np.uint8), study, "test")
+    assert pydicom.dcmread(tmp_path / "p.dcm").PatientName == "Eve"

@@ -18,6 +18,7 @@ References
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -251,13 +252,17 @@ def write_secondary_capture(path, rgb, study, description, series_description="v
     source = study.reference
     # highdicom asks a picture of a patient for its orientation; one it is not told is left empty below
     letters = [str(v).translate(_PATIENT_LETTERS) for v in orientation] if orientation else ["L", "F"]
-    sc = hd.sc.SCImage.from_ref_dataset(
-        source, pixel_array=np.ascontiguousarray(rgb), photometric_interpretation="RGB", bits_allocated=8,
-        coordinate_system="PATIENT", series_instance_uid=series_uid or generate_uid(),
-        series_number=_series_number(source), sop_instance_uid=generate_uid(), instance_number=int(instance_number),
-        manufacturer="voxrender", patient_orientation=tuple(v[0] for v in letters),
-        transfer_syntax_uid=ExplicitVRLittleEndian, series_description=series_description,
-        software_versions=__version__)
+    with warnings.catch_warnings():
+        # the names are the source's, copied as they are: how its scanner wrote them ("Eve") is not for this
+        # picture to warn of
+        warnings.filterwarnings("ignore", "The string .* is unlikely to represent the intended person name")
+        sc = hd.sc.SCImage.from_ref_dataset(
+            source, pixel_array=np.ascontiguousarray(rgb), photometric_interpretation="RGB", bits_allocated=8,
+            coordinate_system="PATIENT", series_instance_uid=series_uid or generate_uid(),
+            series_number=_series_number(source), sop_instance_uid=generate_uid(),
+            instance_number=int(instance_number), manufacturer="voxrender",
+            patient_orientation=tuple(v[0] for v in letters), transfer_syntax_uid=ExplicitVRLittleEndian,
+            series_description=series_description, software_versions=__version__)
     sc.PatientOrientation = letters if orientation else None     # "LP", "HA": an oblique side keeps both letters
     sc.ConversionType = "WSD"
     sc.DerivationDescription = description[:DESCRIPTION_LIMIT]
@@ -313,13 +318,13 @@ def describe(result, about=None):
     about = about or {}
     meta = about.get("object") or {}
     image = getattr(result, "image", None)
+    projection = about.get("projection") or getattr(result, "projection", None)
     parts = []
-    if getattr(image, "method", None):
+    if getattr(image, "method", None) and image.method != projection:    # a projection's method is its mode
         parts.append(str(image.method))
     view = getattr(image, "view", None)
     if view is not None:
         parts.append(f"view alpha {view.alpha:g} beta {view.beta:g} gamma {view.gamma:g}")
-    projection = about.get("projection") or getattr(result, "projection", None)
     if projection:
         parts.append(f"projection {projection}")
     threshold = meta.get("threshold")
