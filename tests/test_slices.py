@@ -325,3 +325,30 @@ def test_vhf_head_in_three_planes():
     # the head up in the coronal slice: its top row crosses the crown, its bottom row the neck, much wider
     grey, _ = plane_image(hu, volume.spacing, "coronal", slice_index(volume, "coronal"))
     assert (grey[-1] > -300).sum() > 3 * (grey[0] > -300).sum()
+
+
+def test_a_mask_is_label_one_and_a_legend_needs_no_overlay():
+    from voxrender.colours import label_colours
+
+    mask = np.zeros((40, 60), bool)
+    mask[5:10, 5:10] = True
+    filled = slice_picture(np.zeros(mask.shape), (1.0, 1.0), BLACK, mask, opacity=1.0, scale_bar=False)
+    assert tuple(filled[7, 7]) == label_colours([1])[1][1] and tuple(filled[20, 30]) == (0, 0, 0)
+    legend = slice_picture(np.zeros(mask.shape), (1.0, 1.0), BLACK, mask, overlay=None, legend=True,
+                           scale_bar=False)
+    assert not legend[:20].any() and legend[20:].any()         # the legend alone, at the bottom left
+
+
+def test_label_slices_with_large_label_numbers():
+    labels = np.zeros((6, 4, 4), np.uint16)
+    labels[1, 0, 0] = 60000
+    labels[4, 1:3, 1:3] = 7
+    assert label_slices(labels, "axial") == {7: 4, 60000: 1}
+    assert label_slices(labels.astype(bool), "axial", how="largest") == {1: 4}
+
+
+def test_plane_index_outside_the_volume_is_refused():
+    for index in (-1, 6, 2.5):
+        with pytest.raises(InputError) as error:
+            plane_image(np.zeros(SHAPE), (1, 1, 1), "axial", index)
+        assert error.value.parameter == "at"

@@ -165,12 +165,17 @@ def label_slices(labels, plane, how="centroid"):
         return {}
     if labels.dtype.kind == "i" and labels.min() < 0:
         raise InputError("the labels hold negative numbers; labels are 0 (background) or above", parameter="labels")
-    top = int(labels.max())
-    sheets = np.moveaxis(labels, 2 - normal, 0)
-    # the voxels of each label in each slice: one bincount a slice (a loop over slices, not voxels)
-    counts = np.stack([np.bincount(sheet.ravel(), minlength=top + 1) for sheet in sheets], axis=1)
-    present = np.flatnonzero(counts[1:].any(axis=1)) + 1
-    counts = counts[present]
+    # the voxels of each label in each slice: one bincount a slice (a loop over slices, not voxels), of which only
+    # the labels the slice holds are kept, so large label numbers cost no (labels x slices) table
+    found = []
+    for sheet in np.moveaxis(labels, 2 - normal, 0):
+        count = np.bincount(sheet.ravel())
+        held = np.flatnonzero(count[1:]) + 1
+        found.append((held, count[held]))
+    present = np.unique(np.concatenate([held for held, _ in found]))
+    counts = np.zeros((present.size, len(found)), np.int64)
+    for index, (held, count) in enumerate(found):
+        counts[np.searchsorted(present, held), index] = count
     if how == "largest":
         chosen = counts.argmax(axis=1)
     else:
@@ -210,7 +215,7 @@ def plane_image(values, spacing, plane, index):
     normal, (row, row_sign), (column, column_sign) = _plane_axes(plane)
     values = np.asarray(values)
     count = values.shape[2 - normal]
-    if not -count <= index < count or int(index) != index:
+    if not 0 <= index < count or int(index) != index:
         raise InputError(f"slice {index} is not one of the {count} {plane} slices (0 to {count - 1})",
                          parameter="at")
     image = np.take(values, int(index), axis=2 - normal)              # the two remaining axes, in [z, y, x] order
@@ -285,7 +290,8 @@ def slice_picture(grey, pixel_mm, window, labels=None, table=None, overlay="fill
         raise InputError(f"{pixel_mm} must be two positive pixel sizes in mm", parameter="pixel_mm")
     if labels is not None:
         labels = np.asarray(labels)
-        if labels.shape != grey.shape or labels.dtype.kind not in "iub":
+        labels = labels.view(np.uint8) if labels.dtype == bool else labels         # a mask: label 1
+        if labels.shape != grey.shape or labels.dtype.kind not in "iu":
             raise InputError(f"the labels ({labels.dtype}, {labels.shape}) must be whole numbers on the slice's grid "
                              f"{grey.shape}", parameter="labels")
         if labels.dtype.kind == "i" and labels.size and labels.min() < 0:
@@ -314,11 +320,10 @@ def slice_picture(grey, pixel_mm, window, labels=None, table=None, overlay="fill
     inside = picture[top:top + shown[0], left:left + shown[1]]
     inside[...] = window.to_uint8(_resample_linear(grey, shown))[..., None]
 
-    shown_labels = None
-    if labels is not None and overlay is not None:
-        shown_labels = _resample_nearest(labels, shown)
+    if labels is not None:
         lookup, table = _colour_lookup(labels, table)
-        _draw_overlay(inside, shown_labels, lookup, overlay, opacity)
+        if overlay is not None:
+            _draw_overlay(inside, _resample_nearest(labels, shown), lookup, overlay, opacity)
     if letters:
         picture = _draw_letters(picture, letters)
     if scale_bar:
@@ -326,8 +331,7 @@ def slice_picture(grey, pixel_mm, window, labels=None, table=None, overlay="fill
     if legend and labels is not None:
         from .marks import draw_legend
 
-        present = np.flatnonzero(np.bincount(labels.ravel()))
-        entries = [table[int(v)] for v in present if v]
+        entries = [table[int(v)] for v in np.flatnonzero(np.bincount(labels.ravel())) if v]
         if entries:
             picture = draw_legend(picture, entries)
     return picture
