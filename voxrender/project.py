@@ -1,0 +1,361 @@
+"""Projections of a grey volume along a view: the maximum (MIP), minimum (MinIP) and mean of the values along
+each pixel's ray.
+
+The picture is the one the surface renderers draw (the view contract of ``docs/design.md``): the same pixel
+centres, the same object space; only the value a ray takes differs.  An input voxel is the closed unit box
+(in input index units) centred on its integer index, as the surface methods see voxels; a ray takes the
+maximum, minimum or path-length-weighted mean of the values of the voxels it passes through, counting only
+the parts of the ray inside the volume, the clip limits and the slab.  That is the limit of sampling the ray
+ever more densely with nearest-neighbour look-ups, and it is computed exactly: the ray is cut at every face
+it crosses.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import InputError
+
+PROJECTIONS = ("mip", "minip", "mean")
+
+# Points this close (in input voxels) to a face count as on it: a ray that starts on a clip face or a volume face
+# takes the voxel inside, whatever the rounding of its start.
+_ON_FACE = 1e-9
+_RAYS_PER_CHUNK = 1 << 16   # rays gathered at once in a layer: their temporaries stay in the cache
+
+
+def project(values, view, mode="mip", *, shape=None, step=(1.0, 1.0, 1.0), clip=None, slab=None, progress=None):
+    """The maximum, minimum or mean of the grey values along each pixel's ray.
+
+    Parameters
+    ----------
+    values : (nz, ny, nx) array
+        Grey values on their own grid (int or float; a read-only memory map is fine: it is read, never copied).
+        NaN and infinite voxels are ignored.
+    view : voxrender.view.View
+        The view, with its ``scale`` set (e.g. the fitted view of the surface picture).
+    mode : {"mip", "minip", "mean"}
+        Maximum intensity projection, minimum intensity projection, or the path-length-weighted mean.
+    shape : (nz, ny, nx), optional
+        The object grid the view is of (cubic voxels; default ``values.shape``): image space and the volume
+        centre are this grid's, as for the surface picture.
+    step : (sx, sy, sz)
+        The object voxel over the input spacing, per axis: object point ``(x, y, z)`` lies at continuous input
+        index ``(x * sx, y * sy, z * sz)``; ``(1, 1, 1)`` when the object grid is the input's.
+    clip : voxrender._render.Clip, optional
+        Clip limits (object voxel indices, half-open: object points with ``lo - 1/2 <= x < hi - 1/2`` are kept)
+        and the cut depth (points with ``Z' >= cut_depth`` are kept).
+    slab : (z_lo, z_hi), optional
+        Keep only the part of each ray with ``z_lo <= Z' <= z_hi`` (object voxels).
+    progress : callable, optional
+        ``progress(iterable, length, label)`` wraps the loop over layers of voxels.
+
+    Returns
+    -------
+    (H, W) float32 array
+        Each pixel's ray value; NaN where the ray meets no (finite) voxel within the limits.
+
+    Notes
+    -----
+    All rays are parallel: in input index space they share one direction ``d``.  The rays are followed through
+    the layers of voxels across the axis ``d`` runs most along (one NumPy pass per layer, for all rays
+    together): within a layer a ray moves at most one voxel along each of the other two axes, so it passes
+    through at most three voxels, the one where it enters the layer, the one where it leaves it, and, when it
+    crosses a face along both other axes, the one between the two crossings.  The three lengths weight the
+    mean.  Views along an axis (the presets) take one reduction along that axis instead.
+
+    Examples
+    --------
+    >>> from voxrender.view import View
+    >>> values = np.arange(24).reshape(2, 3, 4)
+    >>> project(values, View.preset("anterior", size=(2, 4), scale=1.0)).tolist()   # max over y; z up
+    [[20.0, 21.0, 22.0, 23.0], [8.0, 9.0, 10.0, 11.0]]
+    """
+    if mode not in PROJECTIONS:
+        raise InputError(f"unknown projection {mode!r}; choose one of {', '.join(PROJECTIONS)}",
+                         parameter="projection")
+    if view.scale is None:
+        raise InputError("the view has no scale: give it one, or fit it to the volume first (View.fitted)",
+                         parameter="scale")
+    values = _volume(values)
+    shape = values.shape if shape is None else _shape(shape)
+    step = _step(step)
+    slab = _slab(slab)
+    height, width = view.size
+    rays = _Rays(values.shape, view, shape, step, clip, slab)
+    picture = np.full(height * width, np.nan, np.float32)
+    if rays.count:
+        axis_aligned = np.count_nonzero(rays.direction) == 1
+        fold = _project_along_axis if axis_aligned else _project_through_layers
+        picture[rays.pixels] = fold(values, rays, mode, progress)
+    return picture.reshape(height, width)
+
+
+def depth_range(view, shape):
+    """``(Z'min, Z'max)``: the depths the box of a ``shape = (nz, ny, nx)`` volume's voxels spans in this view.
+
+    >>> from voxrender.view import View
+    >>> depth_range(View(), (4, 6, 8))
+    (-2.0, 2.0)
+    >>> [round(z, 3) for z in depth_range(View(alpha=45), (4, 4, 4))]
+    [-2.828, 2.828]
+    """
+    nz, ny, nx = shape
+    corners = np.array(np.meshgrid((-0.5, nx - 0.5), (-0.5, ny - 0.5), (-0.5, nz - 0.5))).reshape(3, -1)
+    depths = view.to_image(*corners, shape)[2]
+    return float(depths.min()), float(depths.max())
+
+
+def _volume(values):
+    if not hasattr(values, "ndim") or values.ndim != 3 or min(values.shape) < 1:
+        raise InputError(f"values must be a 3-D array [z, y, x] of at least one voxel, not "
+                         f"{getattr(values, 'shape', type(values).__name__)}", parameter="values")
+    if values.dtype.kind not in "biuf":
+        raise InputError(f"values must be numbers (int or float), not {values.dtype}", parameter="values")
+    return values
+
+
+def _shape(shape):
+    try:
+        shape = tuple(int(n) for n in shape)
+    except (TypeError, ValueError):
+        shape = ()
+    if len(shape) != 3 or min(shape) < 1:
+        raise InputError("the object grid must be three positive sizes (nz, ny, nx)", parameter="shape")
+    return shape
+
+
+def _step(step):
+    try:
+        step = np.array(step, dtype=float)
+    except (TypeError, ValueError):
+        step = np.zeros(0)
+    if step.shape != (3,) or not np.all(np.isfinite(step) & (step > 0)):
+        raise InputError(f"{step!r}: the step must be three positive numbers (sx, sy, sz), the object voxel over "
+                         "the input spacing per axis", parameter="step")
+    return step
+
+
+def _slab(slab):
+    if slab is None:
+        return None
+    try:
+        low, high = (float(z) for z in slab)
+    except (TypeError, ValueError):
+        low, high = math.nan, math.nan
+    if not (math.isfinite(low) and math.isfinite(high)) or low > high:
+        raise InputError(f"{slab!r} must be two finite depths (z_lo, z_hi) in voxels with z_lo <= z_hi",
+                         parameter="slab")
+    return low, high
+
+
+class _Rays:
+    """The rays that meet the volume within the limits: their pixels, start ``q0`` (input index of the point at
+    ``Z' = 0``), the shared direction ``d`` (input index per unit of ``Z'``) and the interval ``[t0, t1]`` of
+    ``Z'`` each keeps.
+    """
+
+    def __init__(self, input_shape, view, shape, step, clip, slab):
+        xs, ys = view.pixel_centres()
+        xs, ys = np.meshgrid(xs, ys)
+        origin = view.to_object(xs.ravel(), ys.ravel(), 0.0, shape)          # object (x, y, z) at Z' = 0
+        self.direction = view.matrix[2] * step
+        q0 = [o * s for o, s in zip(origin, step, strict=True)]
+        t0 = np.full(xs.size, -np.inf)
+        t1 = np.full(xs.size, np.inf)
+        # the volume's box, and the clip limits (object voxel indices, half-open) mapped to input indices
+        limits = [[-0.5, n - 0.5] for n in input_shape[::-1]]
+        for k, bounds in enumerate((clip.x, clip.y, clip.z) if clip is not None else ()):
+            if bounds is not None:
+                if bounds[0] is not None:
+                    limits[k][0] = max(limits[k][0], (bounds[0] - 0.5) * step[k])
+                if bounds[1] is not None:
+                    limits[k][1] = min(limits[k][1], (bounds[1] - 0.5) * step[k])
+        for k, (low, high) in enumerate(limits):
+            if self.direction[k] == 0:
+                inside = (q0[k] >= low) & (q0[k] <= high)
+                t1[~inside] = -np.inf
+            else:
+                enter, leave = (low - q0[k]) / self.direction[k], (high - q0[k]) / self.direction[k]
+                np.maximum(t0, np.minimum(enter, leave), out=t0)
+                np.minimum(t1, np.maximum(enter, leave), out=t1)
+        if clip is not None and clip.cut_depth is not None:
+            np.maximum(t0, clip.cut_depth, out=t0)
+        if slab is not None:
+            np.maximum(t0, slab[0], out=t0)
+            np.minimum(t1, slab[1], out=t1)
+        self.pixels = np.flatnonzero(t1 > t0)
+        self.count = self.pixels.size
+        self.q0 = [q[self.pixels] for q in q0]
+        self.t0, self.t1 = t0[self.pixels], t1[self.pixels]
+
+
+def _ignored(mode, dtype):
+    """The value that leaves a fold unchanged: below every value for the maximum, above every value for the
+    minimum (what NaN, infinite and absent voxels become).
+    """
+    if dtype.kind == "f":
+        return -np.inf if mode == "mip" else np.inf
+    if dtype.kind == "b":
+        return False if mode == "mip" else True
+    info = np.iinfo(dtype)
+    return info.min if mode == "mip" else info.max
+
+
+def _finished(mode, best, found):
+    """The fold's result as float32, NaN where no finite voxel was met."""
+    out = best.astype(np.float32)
+    out[~found] = np.nan
+    return out
+
+
+def _project_along_axis(values, rays, mode, progress):
+    """Views along an axis: every ray runs along one column of voxels over the same range of layers, so the
+    projection is one reduction of the kept sub-box along that axis, looked up at each ray's column.
+    """
+    a = int(np.flatnonzero(rays.direction)[0])              # object axis index (x, y, z) = (0, 1, 2)
+    axis = 2 - a                                            # its array axis in values[z, y, x]
+    n = values.shape[axis]
+    # all rays keep the same stretch of the axis: q_a = q0_a + t d_a, q0_a the same for every ray
+    ends = rays.q0[a][0] + np.array([rays.t0[0], rays.t1[0]]) * rays.direction[a]
+    low, high = float(ends.min()), float(ends.max())
+    first = int(np.clip(math.floor(low + 0.5 + _ON_FACE), 0, n - 1))
+    last = int(np.clip(math.ceil(high + 0.5 - _ON_FACE) - 1, first, n - 1))
+    # each ray's column: its nearest voxel along the two other axes (it stays within that voxel's box)
+    minor = [k for k in range(3) if k != a]
+    columns = [np.clip(np.floor(rays.q0[k] + 0.5).astype(np.intp), 0, values.shape[2 - k] - 1) for k in minor]
+    layers = range(first, last + 1)
+    centres = np.arange(first, last + 1)
+    weights = np.minimum(centres + 0.5, high) - np.maximum(centres - 0.5, low)   # the length within each layer
+    float_values = values.dtype.kind == "f"
+    block = 16
+    chunks = range(0, len(layers), block)
+    if progress is not None:
+        chunks = progress(chunks, len(chunks), mode)
+    total = found = best = None
+    for start in chunks:
+        index = [slice(None)] * 3
+        index[axis] = slice(first + start, first + min(start + block, len(layers)))
+        part = values[tuple(index)]
+        finite = np.isfinite(part) if float_values else None
+        if mode == "mean":
+            w = weights[start:start + block].reshape([-1 if k == axis else 1 for k in range(3)])
+            if finite is not None:
+                w = np.where(finite, w, 0.0)
+                part = np.where(finite, part, 0)
+            else:
+                w = np.broadcast_to(w, part.shape)
+            s, c = (part * w).sum(axis=axis), w.sum(axis=axis)
+            total, found = (s, c) if total is None else (total + s, found + c)
+        else:
+            if finite is not None:
+                part = np.where(finite, part, _ignored(mode, values.dtype))
+                any_finite = finite.any(axis=axis)
+                found = any_finite if found is None else found | any_finite
+            folded = part.max(axis=axis) if mode == "mip" else part.min(axis=axis)
+            best = folded if best is None else (np.maximum if mode == "mip" else np.minimum)(best, folded)
+    # the reduced image's axes are the two minor axes, in array order (z before y before x)
+    lookup = tuple(columns[::-1])
+    if mode == "mean":
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return (total[lookup] / found[lookup]).astype(np.float32)
+    found = np.ones(best.shape, bool) if found is None else found
+    return _finished(mode, best[lookup], found[lookup])
+
+
+def _project_through_layers(values, rays, mode, progress):
+    """Any view: the rays followed through the layers of voxels across their main axis (see :func:`project`)."""
+    d = rays.direction
+    a = int(np.argmax(np.abs(d)))
+    minor = [k for k in range(3) if k != a]
+    sizes = values.shape[::-1]                                  # (nx, ny, nz)
+    strides = (1, sizes[0], sizes[0] * sizes[1])                # flat index = x + nx (y + ny z)
+    flat = values.reshape(-1) if values.flags.c_contiguous else np.ravel(values)
+    float_values = values.dtype.kind == "f"
+    n = rays.count
+    # the layers each ray passes through with a positive length
+    ends = np.stack([rays.q0[a] + rays.t0 * d[a], rays.q0[a] + rays.t1 * d[a]])
+    first = np.clip(np.floor(ends.min(axis=0) + 0.5 + _ON_FACE), 0, sizes[a] - 1).astype(np.int32)
+    last = np.clip(np.ceil(ends.max(axis=0) + 0.5 - _ON_FACE) - 1, first, sizes[a] - 1).astype(np.int32)
+    if mode == "mean":
+        total, length = np.zeros(n), np.zeros(n)
+    else:
+        best = np.full(n, _ignored(mode, values.dtype), values.dtype)
+        found = np.zeros(n, bool)
+    fold = np.maximum if mode == "mip" else np.minimum
+    layers = range(int(first.min()), int(last.max()) + 1)
+    if progress is not None:
+        layers = progress(layers, len(layers), mode)
+    for layer in layers:
+        active = np.flatnonzero((first <= layer) & (last >= layer))
+        for start in range(0, active.size, _RAYS_PER_CHUNK):
+            chosen = active[start:start + _RAYS_PER_CHUNK]
+            if chosen.size == n:
+                chosen = slice(None)
+            cells, weights = _layer_cells(rays, chosen, layer, a, minor, sizes, strides)
+            gathered = [flat.take(c) for c in cells]
+            if float_values:
+                finite = [np.isfinite(g) for g in gathered]
+            if mode == "mean":
+                for g, w, k in zip(gathered, weights, range(3), strict=True):
+                    if float_values:
+                        w = np.where(finite[k], w, 0.0)
+                        g = np.where(finite[k], g, 0)
+                    total[chosen] += g * w
+                    length[chosen] += w
+            else:
+                if float_values:
+                    gathered = [np.where(f, g, _ignored(mode, values.dtype)) for g, f in zip(gathered, finite,
+                                                                                               strict=True)]
+                    found[chosen] |= finite[0] | finite[1] | finite[2]
+                best[chosen] = fold(best[chosen], fold(fold(gathered[0], gathered[1]), gathered[2]))
+    if mode == "mean":
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return (total / np.where(length > 0, length, np.nan)).astype(np.float32)
+    return _finished(mode, best, found if float_values else np.ones(n, bool))
+
+
+def _layer_cells(rays, chosen, layer, a, minor, sizes, strides):
+    """The (up to) three voxels the ``chosen`` rays pass through in ``layer`` along axis ``a``: flat indices of
+    the voxel where each enters the layer, the one between its two crossings of the other axes' faces, and the
+    one where it leaves; and the length (in ``Z'``) each is passed through for.
+    """
+    d = rays.direction
+    q0 = [q[chosen] for q in rays.q0]
+    # the part of the ray within the layer's faces q_a = layer -+ 1/2 and within its limits
+    faces = ((layer - 0.5 - q0[a]) / d[a], (layer + 0.5 - q0[a]) / d[a])
+    near, far = faces if d[a] > 0 else faces[::-1]
+    enter = np.maximum(rays.t0[chosen], near)
+    leave = np.minimum(rays.t1[chosen], far)
+    cell_in, cell_out, crossing = [], [], []
+    for k in minor:
+        q_in, q_out = q0[k] + enter * d[k], q0[k] + leave * d[k]
+        size = sizes[k]
+        if d[k] > 0:           # the voxel just after entering and just before leaving: a face point goes inward
+            i_in, i_out = np.floor(q_in + 0.5 + _ON_FACE), np.ceil(q_out + 0.5 - _ON_FACE) - 1
+        elif d[k] < 0:
+            i_in, i_out = np.ceil(q_in + 0.5 - _ON_FACE) - 1, np.floor(q_out + 0.5 + _ON_FACE)
+        else:
+            i_in = i_out = np.floor(q_in + 0.5)
+        np.clip(i_in, 0, size - 1, out=i_in)
+        np.clip(i_out, 0, size - 1, out=i_out)
+        crosses = i_in != i_out
+        # the face between the two voxels, and when the ray crosses it (at the end of the part when it does not)
+        face = np.maximum(i_in, i_out) - 0.5
+        with np.errstate(divide="ignore", invalid="ignore"):
+            when = np.where(crosses, (face - q0[k]) / (d[k] if d[k] else 1.0), leave)
+        cell_in.append(i_in.astype(np.intp))
+        cell_out.append(i_out.astype(np.intp))
+        crossing.append(when)
+    first_crossing = np.minimum(crossing[0], crossing[1])
+    second_crossing = np.maximum(crossing[0], crossing[1])
+    b_first = crossing[0] < crossing[1]                 # the middle voxel has b's new index and c's old one
+    base = layer * strides[a]
+    (sb, sc), (bin_, cin), (bout, cout) = (strides[k] for k in minor), cell_in, cell_out
+    entry = base + bin_ * sb + cin * sc
+    leaving = base + bout * sb + cout * sc
+    middle = np.where(b_first, base + bout * sb + cin * sc, base + bin_ * sb + cout * sc)
+    weights = (first_crossing - enter, second_crossing - first_crossing, leave - second_crossing)
+    return (entry, middle, leaving), weights
