@@ -216,9 +216,6 @@ def test_letters_are_written_at_their_edges():
                        "right": yellow[24:40, -12:]}.items():
         assert band.any(), edge
     assert not yellow[16:-16, 16:-16].any()
-    with pytest.raises(InputError) as error:
-        slice_picture(np.zeros((8, 8)), (1.0, 1.0), BLACK, overlay=None, letters={"middle": "X"})
-    assert error.value.parameter == "letters"
 
 
 def volume_at(origin=(10.0, 20.0, -30.0)):

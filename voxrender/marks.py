@@ -34,18 +34,28 @@ def edge_letters(view):
 
 
 def draw_marks(rgb, view, colour=(255, 220, 0)):
-    """``rgb`` with the edge letters written at the middle of each edge."""
+    """``rgb`` with the edge letters of ``view`` (:func:`edge_letters`) written at the middle of each edge."""
+    return draw_letters(rgb, edge_letters(view), colour)
+
+
+def draw_letters(rgb, letters, colour=(255, 220, 0)):
+    """``rgb`` with ``letters`` (``{"left", "right", "top", "bottom"} -> text``) at the middle of each edge.
+
+    >>> picture = draw_letters(np.zeros((40, 40, 3), np.uint8), {"left": "R"})
+    >>> bool(picture[:, :10].any()), bool(picture[:, 10:].any())
+    (True, False)
+    """
     from PIL import Image, ImageDraw
 
     image = Image.fromarray(np.ascontiguousarray(rgb))
     draw = ImageDraw.Draw(image)
     height, width = rgb.shape[:2]
-    letters = edge_letters(view)
-    places = {"left": (3, height // 2 - 5), "right": (width - 3 - 6 * len(letters["right"]), height // 2 - 5),
-              "top": (width // 2 - 3 * len(letters["top"]), 2), "bottom": (width // 2 - 3 * len(letters["bottom"]),
-                                                                          height - 13)}
-    for edge, (x, y) in places.items():
-        draw.text((x, y), letters[edge], fill=tuple(colour))
+    places = {"left": lambda text: (3, height // 2 - 5),
+              "right": lambda text: (width - 3 - 6 * len(text), height // 2 - 5),
+              "top": lambda text: (width // 2 - 3 * len(text), 2),
+              "bottom": lambda text: (width // 2 - 3 * len(text), height - 13)}
+    for edge, text in letters.items():
+        draw.text(places[edge](text), str(text), fill=tuple(colour))
     return np.asarray(image)
 
 

@@ -325,7 +325,9 @@ def slice_picture(grey, pixel_mm, window, labels=None, table=None, overlay="fill
         if overlay is not None:
             _draw_overlay(inside, _resample_nearest(labels, shown), lookup, overlay, opacity)
     if letters:
-        picture = _draw_letters(picture, letters)
+        from .marks import draw_letters
+
+        picture = draw_letters(picture, letters)
     if scale_bar:
         picture = _draw_scale_bar(picture, mm)
     if legend and labels is not None:
@@ -393,26 +395,6 @@ def _draw_overlay(rgb, labels, lookup, overlay, opacity):
         # "inner": the label's own pixels next to another label or the background, so one pixel wide
         edge = find_boundaries(labels, mode="inner")
         rgb[edge] = colours[edge]
-
-
-def _draw_letters(rgb, letters, colour=(255, 220, 0)):
-    """``rgb`` with ``letters`` (``{"left", "right", "top", "bottom"} -> text``) at the middle of each edge, placed
-    as :func:`voxrender.marks.draw_marks` places a view's letters.
-    """
-    from PIL import Image, ImageDraw
-
-    image = Image.fromarray(np.ascontiguousarray(rgb))
-    draw = ImageDraw.Draw(image)
-    height, width = rgb.shape[:2]
-    places = {"left": lambda text: (3, height // 2 - 5),
-              "right": lambda text: (width - 3 - 6 * len(text), height // 2 - 5),
-              "top": lambda text: (width // 2 - 3 * len(text), 2),
-              "bottom": lambda text: (width // 2 - 3 * len(text), height - 13)}
-    for edge, text in letters.items():
-        if edge not in places:
-            raise InputError(f"unknown edge {edge!r}; the letters go at {', '.join(places)}", parameter="letters")
-        draw.text(places[edge](text), str(text), fill=tuple(colour))
-    return np.asarray(image)
 
 
 def round_length(mm):
