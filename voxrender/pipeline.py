@@ -213,6 +213,8 @@ def _encode_labels(volume, read, prepare, meta, progress):
     if selection.source is not None:
         label_volume = replace(label_volume, values=on_image_grid(label_volume, volume, label_name))
         meta["label_source"] = str(label_name)
+    if label_volume.meta.get("overlaps"):          # a folder of masks: the pairs its reader gave to one label
+        meta["overlaps"] = label_volume.meta["overlaps"]
     # the label map lies on the image's grid: resample both with the image's spacing
     labels, info = prep.label_map(replace(label_volume, spacing=volume.spacing), selection, crop=prepare.crop,
                                   voxel=prepare.voxel, resample=prepare.resample)
