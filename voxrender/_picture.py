@@ -23,6 +23,8 @@ from .output_kinds import OUTPUTS, fields_per_output
 from .shade import HEADLIGHT, SHADINGS, light_direction
 from .view import PRESETS, View
 
+PROJECTIONS = ("mip", "minip", "mean")      # voxrender.project's; here so that the options check without importing it
+
 # The views that see a slab thin along an axis face-on.
 FACE_ON = {"x": ("left", "right"), "y": ("anterior", "posterior"), "z": ("inferior", "superior")}
 
@@ -63,6 +65,15 @@ class RenderOptions:
         Darken creases and pits by screen-space ambient occlusion.
     orientation_marks : bool
         Write the patient directions (L/R, A/P, S/I) at the picture's edges.
+    projection : {"mip", "minip", "mean"}, optional
+        Draw the grey values' maximum (minimum, mean) along each ray instead of the surface
+        (:func:`voxrender.project.project`); the picture then needs the grey values (a
+        :class:`~voxrender.study.Study`).
+    window : DisplayWindow, optional
+        The grey values' window of a projection (default: its 1st to 99th percentile,
+        :func:`~voxrender.display.auto_window`).
+    slab : float, optional
+        Project only a slab this many mm thick around the volume centre, or around the cut plane when there is one.
     """
 
     method: str = DEFAULT_METHOD
@@ -80,9 +91,20 @@ class RenderOptions:
     background: tuple = (0, 0, 0)
     ao: bool = False
     orientation_marks: bool = False
+    projection: str | None = None
+    window: object = None
+    slab: float | None = None
 
     def __post_init__(self):
         method_record(self.method, self.method_options)
+        if self.projection is not None and self.projection not in PROJECTIONS:
+            raise InputError(f"unknown projection {self.projection!r}; choose {', '.join(PROJECTIONS)}",
+                             parameter="projection")
+        if self.slab is not None and not (self.slab > 0 and np.isfinite(self.slab)):
+            raise InputError(f"{self.slab:g} must be a thickness above 0 mm", parameter="slab")
+        if self.slab is not None and self.projection is None:
+            raise InputError("a slab is the thickness of a projection; choose a projection (mip, minip or mean) "
+                             "too", parameter="slab")
         if self.shading not in SHADINGS:
             raise InputError(f"unknown shading {self.shading!r}; choose {' or '.join(SHADINGS)}", parameter="shading")
         if self.fit not in ("object", "volume"):
@@ -143,13 +165,30 @@ class Picture:
     labels: np.ndarray | None = None
     label_table: dict | None = None
     label_rows: list | None = None
+    values: np.ndarray | None = None
+    projection: str | None = None
+
+    @property
+    def depth(self):
+        """The depth image; ``None`` for a projection, which has none."""
+        return None if self.projection else self.image.depth
+
+    def _repr_png_(self):
+        """The picture as PNG bytes: a notebook shows it."""
+        import io
+
+        from PIL import Image
+
+        buffer = io.BytesIO()
+        Image.fromarray(self.rgb).save(buffer, format="png")
+        return buffer.getvalue()
 
     def visible_labels(self):
         """The :attr:`label_rows` of the labels the picture shows."""
         return [row for row in self.label_rows or () if row["pixels"]]
 
 
-def picture(segments, view, options=None, progress=None, tree=None, normals=None):
+def picture(segments, view, options=None, progress=None, tree=None, normals=None, study=None):
     """Render ``segments`` from ``view`` and shade it as ``options`` say.
 
     Parameters
@@ -164,11 +203,15 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
         The object's region octree, kept by the caller for octree methods.
     normals : SurfaceNormals, optional
         The object's surface normals (default: those kept with the segments, else from the binary mask).
+    study : Study, optional
+        The grey values a projection draws (:func:`voxrender.study.load_study`), on the grid the segments were
+        made from.
 
     Returns
     -------
     Picture
-        With ``seconds["render"]`` (the renderer alone) and ``seconds["shade"]``.
+        With ``seconds["render"]`` (the renderer alone) and ``seconds["shade"]``; a projection's picture also has
+        its ``values`` (float32, NaN where the ray meets no voxel).
 
     Examples
     --------
@@ -178,6 +221,8 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
     ((16, 16, 3), 'ftb')
     """
     options = options or RenderOptions()
+    if options.projection:
+        return _projection(segments, view, options, study, progress)
     image = render(segments, view, options.method, progress, options.supersample, options.clip, options.fit,
                    tree, **options.method_options)
     segments = getattr(segments, "segments", segments)
@@ -222,6 +267,52 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
 
         result.rgb = draw_legend(rgb, [(caption(v), v["colour"]) for v in result.visible_labels()])
     return result
+
+
+def _projection(segments, view, options, study, progress):
+    """The picture of a projection of the study's grey values, framed as the surface picture of ``segments``."""
+    from .display import auto_window
+    from .project import depth_range, project
+
+    if study is None:
+        raise InputError("a projection draws grey values, which an encoded object does not keep; give the slice "
+                         "stack", parameter="projection")
+    segments = getattr(segments, "segments", segments)
+    if not segments.segment_count:
+        raise InputError("the object is empty: no voxel reaches the threshold")
+    view = view.fitted(segments.shape, framing_box(segments, options.clip), options.fit)
+    slab = None
+    if options.slab is not None:
+        low, high = depth_range(view, segments.shape)
+        thickness = options.slab / study.voxel
+        if thickness > high - low:
+            raise InputError(f"a slab of {options.slab:g} mm is thicker than the volume seen from this view "
+                             f"({(high - low) * study.voxel:.1f} mm); choose a thinner one, or drop it to project "
+                             "the whole volume", parameter="slab")
+        middle = options.clip.cut_depth if options.clip is not None and options.clip.cut_depth is not None else 0.0
+        slab = (middle - thickness / 2, middle + thickness / 2)
+    started = time.perf_counter()
+    values = project(study.volume.values, view, options.projection, shape=segments.shape, step=study.step,
+                     clip=options.clip, slab=slab, progress=progress)
+    seconds = {"render": time.perf_counter() - started}
+    started = time.perf_counter()
+    seen = np.isfinite(values)
+    if not seen.any():
+        raise InputError("no ray of the projection meets a voxel within the clip limits and slab; widen them",
+                         parameter="slab" if slab else "projection")
+    window = options.window or auto_window(values[seen])
+    grey = window.to_uint8(values)
+    rgb = np.where(seen[..., None], grey[..., None], np.asarray(options.background, np.uint8)).astype(np.uint8)
+    if options.orientation_marks:
+        from .marks import draw_marks
+
+        rgb = draw_marks(rgb, view)
+    stats = {"projection": options.projection, "window": str(window), "rays_meeting_voxels": int(seen.sum()),
+             **({"slab": list(slab)} if slab else {})}
+    image = DepthImage(np.where(seen, np.float32(0), np.float32(np.inf)), view, options.projection, stats,
+                       seconds["render"])
+    return Picture(rgb, image, {**seconds, "shade": time.perf_counter() - started}, values=values,
+                   projection=options.projection)
 
 
 def _why_empty(segments, view, options):

@@ -155,6 +155,9 @@ class Item:
     patterns: Patterns = field(default_factory=Patterns)
     per_label: bool = False
     manifest_outputs: tuple = ()      # the outputs whose pattern a manifest row gave: its errors name the row
+    qc_sheet: bool = False            # also its QC sheet (voxrender.qc.qc_sheet), with these slices
+    slices: object = None
+    dicom_study_from: str | None = None   # the DICOM series its DICOM pictures join (default: its input)
 
     @property
     def method(self):
@@ -174,6 +177,20 @@ class Item:
     def output(self, out_dir, view, index):
         """Where the picture of one view of the item goes."""
         return self.outputs(out_dir, view, index).picture
+
+    def sheet_path(self, out_dir):
+        """Where its QC sheet goes: ``OUT/sheets/{name}.png``."""
+        return Path(out_dir) / "sheets" / f"{self.name}.png"
+
+    @property
+    def needs_grey(self):
+        """Whether its pictures draw grey values (projections), which the cache then keeps beside the object."""
+        return self.options.projection is not None
+
+    def sheet_views(self):
+        """The views its QC sheet shows: all of them, or four spread over a turntable's frames."""
+        views = self.views if len(self.views) <= 6 else [self.views[k * len(self.views) // 4] for k in range(4)]
+        return [(v.label, (v.alpha, v.beta, v.gamma)) for v in views]
 
 
 def expand_inputs(patterns):
@@ -244,12 +261,15 @@ def read_manifest(path):
     return rows
 
 
-def items_from(inputs, manifest_rows, read, prepare, options, views, patterns, per_label=False):
+def items_from(inputs, manifest_rows, read, prepare, options, views, patterns, per_label=False, qc_sheet=False,
+               slices=None, dicom_study_from=None):
     """The batch's items: one per input path, then one per manifest row (its columns override).
 
     A row's ``labels``, ``threshold``, ``views``, ``method`` and ``output`` (the picture's pattern) are text,
     parsed here.  A row's label map makes the object its labels (each in its colour); the threshold then
-    applies only when the row or the command gives one.
+    applies only when the row or the command gives one.  With ``qc_sheet`` each item also gets its QC sheet, with
+    ``slices`` (a :class:`~voxrender.qc.SliceOptions`); ``dicom_study_from`` names the DICOM series that DICOM
+    pictures join.
     """
     rows = [{"input": p} for p in inputs] + list(manifest_rows)
     if not rows:
@@ -278,8 +298,28 @@ def items_from(inputs, manifest_rows, read, prepare, options, views, patterns, p
         given = str(row.get("output") or "").strip()
         item_patterns = replace(patterns, picture=given or patterns.picture)
         items.append(Item(str(row["input"]), name, read, item_prepare, item_options, item_views, item_patterns,
-                          per_label, ("picture",) if given else ()))
+                          per_label, ("picture",) if given else (), qc_sheet, slices,
+                          None if dicom_study_from is None else str(dicom_study_from)))
+    if patterns.dicom is not None:
+        _check_dicom_sources(items)
     return items
+
+
+def _check_dicom_sources(items):
+    """Every item whose pictures are written as DICOM has a study to join: its input is DICOM, or the batch names
+    one; refused before anything is made.
+    """
+    from .io import detect_format
+
+    for item in items:
+        source = item.dicom_study_from or item.input
+        try:
+            is_dicom = Path(source).exists() and detect_format(source) == "dicom"
+        except InputError:
+            is_dicom = False
+        if not is_dicom:
+            raise InputError(f"{source} is not DICOM, so its pictures have no study to join; name the DICOM series "
+                             "it was made from, or write no DICOM pictures", parameter="dicom_study_from")
 
 
 def _content_files(path):
@@ -321,30 +361,74 @@ def _stable(value):
 
 # ------------------------------------------------------------------ the two kinds of task (run in workers)
 
-def _encode_task(item, cache_dir):
-    """Phase 1: the cached ``.vxs`` of ``item`` (made now if absent); returns a small report dict."""
+def _encode_task(item, cache_dir, out_dir=None):
+    """Phase 1: the cached ``.vxs`` of ``item`` (made now if absent), with its grey values when its pictures are
+    projections, and its QC sheet when wanted and not there yet; returns a small report dict.
+    """
     started = time.perf_counter()
+    sheet = item.sheet_path(out_dir) if item.qc_sheet and out_dir is not None else None
     try:
+        make_sheet = sheet is not None and not _is_png(sheet)
         if is_segments_file(item.input):
+            if item.needs_grey or make_sheet:
+                raise InputError(f"{item.input} is an encoded object, which keeps no grey values for projections or "
+                                 "a QC sheet; give the slice stack it was made from")
             return {"input": item.input, "segments": item.input, "seconds": {"load": 0.0, "prepare": 0.0}}
         with_octree = method_record(item.method).octree          # kept in the cache: built once, not per view
         key = cache_key(item.input, item.read, item.prepare)
         target = Path(cache_dir) / f"{key}.{'vxo' if with_octree else 'vxs'}"
-        if _is_intact(target):          # a damaged or tampered entry is made again
-            return {"input": item.input, "segments": str(target), "seconds": {"load": 0.0, "prepare": 0.0},
-                    "cached": True, "key_seconds": time.perf_counter() - started}
-        loaded = load_segments(item.input, item.read, item.prepare)
+        report = {"input": item.input, "segments": str(target), "seconds": {"load": 0.0, "prepare": 0.0}}
+        if sheet is not None:
+            report["sheet"] = str(sheet)
+        grey_kept = not item.needs_grey or all(p.is_file() for p in _study_files(target))
+        if _is_intact(target) and grey_kept and not make_sheet:      # a damaged or tampered entry is made again
+            return {**report, "cached": True, "key_seconds": time.perf_counter() - started}
+        study = None
+        if item.needs_grey or make_sheet:
+            from .study import load_study
+
+            study = load_study(item.input, item.read, item.prepare)
+            loaded = study.encoded
+        else:
+            loaded = load_segments(item.input, item.read, item.prepare)
         try:
+            if item.needs_grey:                      # before the object: an intact entry has its grey values
+                study.save(target.with_suffix(""))
             loaded.save(target, octree=with_octree)
             output.write_json(_record_of(target), _checksum(target))
+            if make_sheet:
+                from .qc import qc_sheet
+
+                sheet.parent.mkdir(parents=True, exist_ok=True)
+                output.write_png(sheet, qc_sheet(study, item.options, item.sheet_views(), item.slices,
+                                                 title=f"{item.name}: {item.input}"))
         except OSError as exc:          # the disk refused, not the input nor voxrender
             return _write_failure({"input": item.input}, exc)
-        return {"input": item.input, "segments": str(target), "seconds": loaded.seconds, "cached": False}
+        return {**report, "seconds": loaded.seconds, "cached": False}
     except InputError as exc:
         return {"input": item.input, "error": str(exc)}
     except Exception as exc:  # a bug must not stop the other inputs; it is reported in the summary
         return {"input": item.input, "error": f"internal error: {type(exc).__name__}: {exc}",
                 "traceback": traceback.format_exc()}
+
+
+def _study_files(target):
+    """The grey values (and labels) a cache entry keeps beside the object when its pictures draw them."""
+    from .study import saved_files
+
+    grey, labels, record = saved_files(target.with_suffix(""))
+    return [grey, record]
+
+
+def _is_png(path):
+    """Whether ``path`` is a whole, readable PNG."""
+    import imageio.v3 as iio
+
+    try:
+        iio.imread(path, extension=".png")
+    except Exception:  # missing, truncated or not a PNG
+        return False
+    return True
 
 
 def _record_of(entry):
@@ -394,6 +478,22 @@ def _encoded(path, stamp):
     return load_segments(path)
 
 
+@functools.lru_cache(maxsize=2)
+def _study(path, stamp):
+    """The grey values kept beside the object at ``path`` (memory-mapped), with the object, kept as :func:`_encoded`."""
+    from .study import load_saved
+
+    return load_saved(Path(path).with_suffix(""), _encoded(path, stamp))
+
+
+@functools.lru_cache(maxsize=8)
+def _dicom_study(source, series):
+    """The DICOM series a picture joins (:func:`voxrender.secondary_capture.dicom_study`), read once per worker."""
+    from .secondary_capture import dicom_study
+
+    return dicom_study(source, series)
+
+
 def _summary_row(item, view, picture_path, status, error="", **numbers):
     """The summary row of one picture (see ``SUMMARY_COLUMNS``): which input, view and method, where it went, its
     ``status`` (``"ok"``, ``"done earlier"`` or ``"failed"``) and ``error``, and, once made, its ``numbers``.
@@ -408,13 +508,18 @@ def _render_task(item, view, index, segments_path, out_dir, encode_seconds):
     outputs = item.outputs(out_dir, view, index)
     try:
         status = Path(segments_path).stat()
-        encoded = _encoded(str(segments_path), (status.st_size, status.st_mtime_ns))
+        stamp = (status.st_size, status.st_mtime_ns)
+        encoded = _encoded(str(segments_path), stamp)
+        study = _study(str(segments_path), stamp) if item.needs_grey else None
         result = picture(encoded.segments, framed(item, view, encoded.segments), item.options,
-                         tree=encoded.tree_for(item.method))
+                         tree=encoded.tree_for(item.method), study=study)
+        told = about(encoded.segments)
+        if outputs.dicom is not None:
+            told.update(_dicom_fields(item, out_dir, index))
         try:
             for path in outputs.wanted().values():
                 path.parent.mkdir(parents=True, exist_ok=True)
-            seconds = write_outputs(result, outputs, about(encoded.segments))   # this picture's stages
+            seconds = write_outputs(result, outputs, told)   # this picture's stages
             if item.per_label and result.labels is not None:
                 _write_label_pictures(item, result, encoded.segments, outputs.picture)
         except BaseException as exc:    # a view's outputs are all there or none: a re-run makes them all again
@@ -432,8 +537,21 @@ def _render_task(item, view, index, segments_path, out_dir, encode_seconds):
                        labels=len(result.image.stats.get("label_pixels", {})) if result.labels is not None else "",
                        label_volumes=json.dumps([{k: row[k] for k in ("label", "name", "voxels", "ml")}
                                                  for row in result.label_rows]) if result.label_rows else "",
+                       label_colours=json.dumps({row["label"]: row["colour"] for row in result.label_rows or ()}),
+                       overlaps=json.dumps(encoded.segments.meta.get("overlaps") or []),
                        load_s=encode_seconds.get("load", 0.0), prepare_s=encode_seconds.get("prepare", 0.0),
                        **{f"{stage}_s": value for stage, value in seconds.items()})   # load and prepare: the input's
+
+
+def _dicom_fields(item, out_dir, index):
+    """What a DICOM picture of ``item`` needs: its source study, and the series all its views share (a UID made of
+    the source series, the batch's folder and the item's name, so a re-run keeps them in it) and its number there.
+    """
+    from pydicom.uid import generate_uid
+
+    study = _dicom_study(item.dicom_study_from or item.input, item.read.series)
+    series = generate_uid(entropy_srcs=[study.series_uid, os.path.realpath(out_dir), item.name])
+    return {"dicom_study": study, "dicom_series_uid": series, "dicom_instance_number": index + 1}
 
 
 def _write_label_pictures(item, result, segments, picture_path):
@@ -745,9 +863,9 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
         _make_folder(cache_dir)
         for folder in _folders_written(items, out_dir) | ({cache_dir} if own_cache else set()):
             output.remove_partials(folder)      # what a batch killed while writing left
-        ordered = _render_all(items, out_dir, jobs, scheduler, cache_dir, progress)
+        ordered, study_errors = _render_all(items, out_dir, jobs, scheduler, cache_dir, progress)
         no_space = any([row.pop("no_space", False) for row in ordered])     # every row's mark popped
-        unwritten = _write_reports(out_dir, ordered)
+        unwritten = _write_reports(out_dir, ordered, items, study_errors)
         if no_space or unwritten:
             there = sum(row["status"] in ("ok", "done earlier") for row in ordered)
             said = f"{' and '.join(unwritten)} not written" if unwritten else f"{out_dir / 'summary.csv'} says which"
@@ -767,13 +885,16 @@ def _folders_written(items, out_dir):
                         for path in item.outputs(out_dir, view, index).wanted().values()}
 
 
-def _write_reports(out_dir, rows):
+def _write_reports(out_dir, rows, items, study_errors):
     """Write ``summary.csv`` and ``index.html``; the names of those a full disk left unwritten (and removed, as the
     ones of an earlier run would not say what is there now).
     """
+    from .index_page import write_index
+
     unwritten = []
     for path, write in ((out_dir / "summary.csv", lambda path: _write_summary(path, rows)),
-                        (out_dir / "index.html", lambda path: _write_index(path, rows, out_dir))):
+                        (out_dir / "index.html",
+                         lambda path: write_index(path, _study_rows(items, rows, study_errors, out_dir)))):
         try:
             write(path)
         except OSError as exc:
@@ -824,10 +945,13 @@ def _folder_lock(out_dir):
 
 
 def _render_all(items, out_dir, jobs, scheduler, cache_dir, progress):
-    """The two phases of the batch (see the module's docstring): the summary rows, in the items' order."""
+    """The two phases of the batch (see the module's docstring): the summary rows, in the items' order, and the
+    errors of the items whose encoding failed (their QC sheet too), by name.
+    """
     jobs = jobs or os.cpu_count() or 1
     rows = {}
     todo = {}
+    study_errors = {}
     for item in items:
         for index, view in enumerate(item.views):
             outputs = item.outputs(out_dir, view, index)
@@ -835,10 +959,13 @@ def _render_all(items, out_dir, jobs, scheduler, cache_dir, progress):
                 rows[(item.name, view.label)] = _summary_row(item, view, outputs.picture, "done earlier")
             else:
                 todo.setdefault(id(item), (item, []))[1].append((index, view))
+        if item.qc_sheet and not _is_png(item.sheet_path(out_dir)):       # its sheet is made by its encode task
+            todo.setdefault(id(item), (item, []))
     bar = progress(len(todo) + sum(len(v) for _, v in todo.values())) if progress else None
     pool = _executor(jobs, scheduler)
     try:
-        encodes = {pool.submit(_encode_task, item, str(cache_dir)): (item, views) for item, views in todo.values()}
+        encodes = {pool.submit(_encode_task, item, str(cache_dir), str(out_dir)): (item, views)
+                   for item, views in todo.values()}
         renders = {}
         for future in pool.as_completed(list(encodes)):
             item, views = encodes[future]
@@ -849,6 +976,7 @@ def _render_all(items, out_dir, jobs, scheduler, cache_dir, progress):
             if bar:
                 bar.update(1)
             if "error" in report:
+                study_errors[item.name] = report["error"]
                 for index, view in views:
                     rows[(item.name, view.label)] = _summary_row(item, view, item.output(out_dir, view, index),
                                                                 "failed", report["error"],
@@ -872,7 +1000,7 @@ def _render_all(items, out_dir, jobs, scheduler, cache_dir, progress):
         pool.close()
         if bar:
             bar.close()
-    return [rows[(item.name, view.label)] for item in items for view in item.views]
+    return [rows[(item.name, view.label)] for item in items for view in item.views], study_errors
 
 
 def _check_patterns(items, out_dir):
@@ -946,26 +1074,37 @@ def _animate(item, out_dir, kind, fps, rows):
         raise InputError(f"cannot write {target}: {exc}{needs}") from None
 
 
-def _write_index(path, rows, out_dir):
-    """A static page: one line per picture, its thumbnail linked to it, with its numbers and error."""
-    import html
+def _study_rows(items, rows, study_errors, out_dir):
+    """The index page's row of each item (:class:`voxrender.index_page.StudyRow`): its sheet, its views (a turntable
+    when they are one), its labels and overlaps, and its error, with paths relative to ``out_dir``.
+    """
+    from .index_page import StudyRow
 
-    cells = ["<tr><th>picture</th><th>input</th><th>view</th><th>method</th><th>status</th><th>render s</th>"
-             "<th>total s</th><th>error</th></tr>"]
+    def relative(path):
+        path = Path(path)
+        return str(path.relative_to(out_dir)) if path.is_relative_to(out_dir) else str(path)
+
+    by_name = {}
     for row in rows:
-        picture = Path(row["output"])
-        link = html.escape(str(picture.relative_to(out_dir)) if picture.is_relative_to(out_dir) else str(picture))
-        shown = (f'<a href="{link}"><img src="{link}" width="160" loading="lazy"></a>'
-                 if row["status"] in ("ok", "done earlier") else "")
-        numbers = [f"{row[key]:.3f}" if isinstance(row.get(key), float) else "" for key in ("render_s", "total_s")]
-        cells.append("<tr>" + "".join(f"<td>{value}</td>" for value in (
-            shown, html.escape(row["name"]), html.escape(row["view"]), html.escape(row["method"]),
-            html.escape(row["status"]), *numbers, html.escape(row.get("error", "")))) + "</tr>")
-    page = ("<!doctype html><meta charset=\"utf-8\"><title>voxrender batch</title>"
-            "<style>body{font-family:sans-serif} td,th{padding:4px;border-bottom:1px solid #ccc}</style>"
-            f"<h1>voxrender batch: {len(rows)} pictures</h1><table>{''.join(cells)}</table>\n")
-    with output.atomic_output(path) as tmp:
-        tmp.write_text(page)
+        by_name.setdefault(row["name"], []).append(row)
+    studies = []
+    for item in items:
+        own = by_name.get(item.name, [])
+        made = [row for row in own if row["status"] in ("ok", "done earlier")]
+        error = study_errors.get(item.name) or next((row["error"] for row in own if row["status"] == "failed"), "")
+        pictures = [(row["view"], relative(row["output"])) for row in made]
+        turning = len(made) > 1 and len(made) == len(own) and all(row["view"].startswith("turn") for row in own)
+        labels = next((json.loads(row["label_volumes"]) for row in own if row.get("label_volumes")), [])
+        colours = next((json.loads(row["label_colours"]) for row in own if row.get("label_colours")), {})
+        for entry in labels:
+            entry.setdefault("colour", colours.get(str(entry["label"]), [128, 128, 128]))
+        sheet = item.sheet_path(out_dir) if item.qc_sheet else None
+        seconds = [row["total_s"] for row in made if isinstance(row.get("total_s"), float)]
+        studies.append(StudyRow(item.name, item.input, error, relative(sheet) if sheet and sheet.is_file() else None,
+                                [] if turning else pictures, [path for _, path in pictures] if turning else [],
+                                labels, next((json.loads(row["overlaps"]) for row in own if row.get("overlaps")), []),
+                                sum(seconds) if seconds else None))
+    return studies
 
 
 def _write_sheet(path, items, rows):

@@ -18,7 +18,7 @@ import click
 import numpy as np
 
 from . import __version__, batch, colours, compare, io, lines, orient, output, parse, prep, samples, segments
-from ._picture import Outputs, RenderOptions, about, label_table, picture, write_outputs
+from ._picture import PROJECTIONS, Outputs, RenderOptions, about, label_table, picture, write_outputs
 from ._render import DEFAULT_METHOD, METHODS, Clip
 from ._render.raycast import CONNECTIVITIES
 from .errors import InputError
@@ -26,6 +26,7 @@ from .output_kinds import LABELS, OUTPUTS
 from .pipeline import Encoded, PrepOptions, ReadOptions, is_segments_file, load_segments
 from .shade import HEADLIGHT, SHADINGS
 from .sheet import render_sheet, sheet
+from .slices import OVERLAYS
 from .view import PRESETS, angles_from_vpn
 
 
@@ -49,6 +50,7 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 # Library parameters whose flag is not "--" + the name with dashes; the outputs' flags are in their records.
 FLAGS = {"picture": "--pattern", "inputs": "INPUT", "compare": "--compare-rays", "views": "the manifest's views",
+         "planes": "--slices",
          **{name: f"--{kind.flag}" for name, kind in OUTPUTS.items() if kind.flag}}
 
 
@@ -138,7 +140,8 @@ def _render_options(options):
                          parse.size(options["size"]), options["scale"], options["supersample"], options["shading"],
                          parse.vector(options["light"], "light"), tuple(c / 255 for c in colour), table,
                          options["legend"], background=parse.colour(options["background"]), ao=options["ao"],
-                         orientation_marks=options["orientation_marks"])
+                         orientation_marks=options["orientation_marks"], projection=options["projection"],
+                         window=parse.window(options["window"]) if options["window"] else None, slab=options["slab"])
 
 
 def _output_paths(options):
@@ -259,8 +262,55 @@ def _render_options_decorator(command):
         click.option("--ao", is_flag=True, help="Darken creases and pits (screen-space ambient occlusion)."),
         click.option("--orientation-marks", is_flag=True,
                      help="Write the patient directions (L/R, A/P, S/I) at the picture's edges."),
+        click.option("--projection", type=click.Choice(PROJECTIONS),
+                     help="Draw the maximum (mip), minimum (minip) or mean of the grey values along each ray, "
+                          "framed as the surface would be, instead of the surface."),
+        click.option("--slab", type=float, metavar="MM",
+                     help="With --projection: only a slab this thick, around the volume centre or the cut plane."),
+        _window_option,
+        click.option("--dicom-study-from", type=click.Path(path_type=Path), metavar="DICOM_DIR",
+                     help="With --dicom-out: the DICOM series whose study the picture joins (default: INPUT's)."),
         _output_options_decorator,
     ])
+
+
+_window_option = click.option(
+    "--window", metavar="LEVEL/WIDTH|NAME",
+    help="Grey values' window of slices and projections: e.g. 40/400, or brain, soft-tissue, bone, lung (default: "
+         "soft-tissue for CT, else the 1st to 99th percentile).")
+
+
+def _slice_options_decorator(command):
+    """The options of the slices, declared once for ``slices``, ``sheet`` and ``batch``."""
+    return _decorate(command, [
+        click.option("--slices", "planes", metavar="PLANE[,PLANE...]",
+                     help="Slices to draw: axial, coronal, sagittal (radiological: the patient's left on the "
+                          "right), at their true aspect."),
+        click.option("--at", metavar="centre|X,Y,Z|X,Y,Zvox|labels|labels:largest",
+                     help="Where the slices cross: the volume centre, a point in patient mm (LPS) or in voxels, or "
+                          "through each label's centroid (labels) or largest cross-section."),
+        click.option("--overlay", type=click.Choice([*OVERLAYS, "none"]),
+                     help="Labels over the slices: filled, outlined (one pixel wide) or both [default: fill, when "
+                          "there are labels]."),
+        click.option("--opacity", type=float, default=0.4, show_default=True, help="Of the filled labels, 0 to 1."),
+    ])
+
+
+def _slice_options(options, planes=None, legend=False):
+    """The :class:`~voxrender.qc.SliceOptions` of the slice flags, or ``None`` when no planes are asked for."""
+    from .qc import SliceOptions
+
+    planes = parse.planes(options["planes"]) if options.get("planes") else planes
+    if planes is None:
+        given = [flag(name) for name in ("at", "overlay") if options.get(name)]
+        if given:
+            raise InputError(f"{', '.join(given)} apply to slices; give --slices axial,coronal,sagittal too")
+        return None
+    labelled = bool(options.get("labels") or options.get("label") or options.get("labels_from"))
+    overlay = options.get("overlay") or ("fill" if labelled else "none")
+    return SliceOptions(planes, parse.slice_point(options["at"]) if options.get("at") else None,
+                        parse.window(options["window"]) if options.get("window") else None,
+                        None if overlay == "none" else overlay, options["opacity"], legend=legend)
 
 
 def _output_options_decorator(command):
@@ -331,14 +381,103 @@ def render_command(input_path, output_path, **options):
     outputs.check(render_options)
     for path in outputs.wanted().values():
         output.check_writable(path)
-    loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
+    joins = _dicom_study(input_path, options, outputs.dicom)         # a non-DICOM input is refused before reading
+    study = None
+    if render_options.projection:
+        from .study import load_study
+
+        study = load_study(input_path, _read_options(options), _prep_options(options), progress)
+        loaded = study.encoded
+    else:
+        loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
     _check_label_options(loaded.segments, {"colours": options["colours"], "legend": options["legend"],
                                            **{name: path for name, path in outputs.wanted().items()
                                               if OUTPUTS[name].needs is LABELS}})
     result = picture(loaded.segments, render_options.view(*angles), render_options, progress,
-                     loaded.tree_for(render_options.method))
+                     loaded.tree_for(render_options.method), study=study)
     result.seconds = {**loaded.seconds, **result.seconds}
-    write_outputs(result, outputs, about(loaded.segments))     # an empty picture was warned of, with the reason
+    write_outputs(result, outputs, {**about(loaded.segments), **joins})   # an empty picture was warned of
+
+
+def _write_with_dicom(path, rgb, dicom, joins, what):
+    """Write ``rgb`` to the PNG ``path`` and, when ``dicom`` is given, as a Secondary Capture of the study in
+    ``joins``: both or neither.
+    """
+    if dicom is not None:
+        from .secondary_capture import write_secondary_capture
+
+        write_secondary_capture(dicom, rgb, joins["dicom_study"], f"voxrender {__version__}: {what}")
+    try:
+        output.write_png(path, rgb)
+    except BaseException:
+        if dicom is not None:
+            Path(dicom).unlink(missing_ok=True)
+        raise
+
+
+def _dicom_study(input_path, options, wanted):
+    """``{"dicom_study": DicomStudy}`` of the series a DICOM output joins (``--dicom-study-from``, else the input),
+    read before anything is rendered, so that a non-DICOM input is refused first; ``{}`` when none is wanted.
+    """
+    if not wanted:
+        if options.get("dicom_study_from"):
+            raise InputError("names the study a DICOM output joins; give --dicom-out too",
+                             parameter="dicom_study_from")
+        return {}
+    from .secondary_capture import dicom_study
+
+    return {"dicom_study": dicom_study(options.get("dicom_study_from") or input_path, options.get("series"))}
+
+
+@main.command("slices")
+@_input_options
+@click.option("--labels", is_flag=True, help="INPUT is a label map: its labels drawn alone, each in its colour.")
+@click.option("--label", metavar="N[,M...]", help="Only these labels of the label map.")
+@click.option("--labels-from", type=click.Path(path_type=Path), metavar="MAP",
+              help="The labels of INPUT: a label map, a folder of masks, a DICOM SEG or RTSTRUCT, placed by position.")
+@click.option("--crop", metavar="X0:X1,Y0:Y1,Z0:Z1", help="Subregion in input voxel indices.")
+@click.option("-o", "--output", "output_path", required=True, type=click.Path(path_type=Path), help="PNG to write.")
+@_slice_options_decorator
+@_window_option
+@click.option("--size", default="512", show_default=True, metavar="N|WxH", help="Each slice's picture, in pixels.")
+@click.option("--colours", "--colors", "colour_table", type=click.Path(path_type=Path), metavar="FILE",
+              help="Names and colours of labels (as for render).")
+@click.option("--legend", is_flag=True, help="Name the labels each slice shows.")
+@click.option("--dicom-out", "dicom", type=click.Path(path_type=Path), metavar="FILE.dcm",
+              help="Also save the picture as an RGB DICOM Secondary Capture in a new series of the source study.")
+@click.option("--dicom-study-from", type=click.Path(path_type=Path), metavar="DICOM_DIR",
+              help="With --dicom-out: the DICOM series whose study the picture joins (default: INPUT's).")
+def slices_command(input_path, output_path, size, colour_table, legend, dicom, **options):
+    """Draw axial, coronal and sagittal slices of INPUT with its labels over them, side by side, to a PNG.
+
+    The slices cross at the volume centre, a point, or each label (a row per label); each is shown at its true
+    aspect, radiologically (the patient's left on the right), with orientation letters and a scale bar in mm.
+    """
+    from .qc import slice_pictures
+    from .study import load_study
+
+    _check_vxs_options(input_path, options)
+    for path in (output_path, dicom):
+        if path is not None:
+            output.check_writable(path)
+    if dicom is not None and dicom.suffix.lower() != ".dcm":
+        raise InputError(f"{dicom} must end in .dcm", parameter="dicom")
+    joins = _dicom_study(input_path, options, dicom)
+    chosen = parse.labels(options["label"]) if options["label"] else None
+    labelled = options["labels"] or options["label"] or options["labels_from"]
+    selection = prep.LabelSelection(chosen, True, options["labels_from"]) if labelled else None
+    crop = parse.crop(options["crop"]) if options["crop"] else None
+    slice_options = replace(_slice_options(options, planes=("axial", "coronal", "sagittal"), legend=legend),
+                            size=parse.size(size))
+    table = colours.read_colour_table(colour_table) if colour_table else None
+    study = load_study(input_path, _read_options(options), PrepOptions(None, crop, labels=selection), progress,
+                       encode=False)
+    rows = slice_pictures(study, slice_options, table)
+    picture_rgb = sheet([[rgb for _, rgb in row] for row in rows], [[caption for caption, _ in row] for row in rows])
+    _write_with_dicom(output_path, picture_rgb, dicom, joins,
+                      f"slices {', '.join(slice_options.planes)}" + (f" with the labels of {options['labels_from']}"
+                                                                      if options["labels_from"] else ""))
+    click.echo(f"{output_path}: {len(rows)} row{'s' * (len(rows) > 1)} of {', '.join(slice_options.planes)}")
 
 
 @main.command("encode")
@@ -528,7 +667,10 @@ class _BatchBar:
 @_render_options_decorator
 @click.option("--per-label", is_flag=True,
               help="Also write each label the picture shows alone, beside it ({view}-label{N}.png).")
-@click.option("--sheet", "make_sheet", is_flag=True, help="Also lay all pictures out in OUT/sheet.png.")
+@click.option("--sheet", "make_sheet", is_flag=True,
+              help="Also each input's QC sheet in OUT/sheets/NAME.png (its views, --projection, --slices and labels) "
+                   "and all pictures laid out in OUT/sheet.png.")
+@_slice_options_decorator
 @click.option("--gif", is_flag=True, help="Also write each input's views as an animated GIF.")
 @click.option("--mp4", is_flag=True, help="Also write each input's views as an MP4 (extra 'video').")
 @click.option("--fps", default=12, show_default=True, type=click.IntRange(1, 120))
@@ -547,10 +689,15 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"--out {out_dir} is a file; give a folder")
     patterns = batch.Patterns(pattern, **{name: str(path) for name, path in _output_paths(options).items()})
+    slice_options = _slice_options(options)
+    if slice_options is not None and not make_sheet:
+        raise InputError("slices are drawn on each input's QC sheet; give --sheet too", parameter="planes")
+    if options["dicom_study_from"] and not options.get("dicom"):
+        raise InputError("names the study a DICOM output joins; give --dicom-out too", parameter="dicom_study_from")
     items = batch.items_from(batch.expand_inputs(inputs), batch.read_manifest(manifest) if manifest else [],
                              _read_options(options), _prep_options(options), _render_options(options),
                              batch.parse_views(views, [parse.vector(a, "angles") for a in angles], turntable, axis),
-                             patterns, per_label)
+                             patterns, per_label, make_sheet, slice_options, options["dicom_study_from"])
     animations = [kind for kind, wanted in (("gif", gif), ("mp4", mp4)) if wanted]
     started = time.perf_counter()
     summary = batch.run_batch(items, out_dir, jobs, scheduler, cache, animations, fps, _BatchBar, make_sheet)
@@ -571,26 +718,52 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
 @_prep_options_decorator
 @click.option("-o", "--output", "output_path", required=True, type=click.Path(path_type=Path), help="PNG to write.")
 @click.option("--view", "views", multiple=True, type=click.Choice(list(PRESETS)), help="A named view (repeatable).")
+@click.option("--views", "view_list", metavar="NAME[,NAME...]", help="Named views, separated by commas.")
 @click.option("--angles", multiple=True, metavar="A,B,G", help="alpha,beta,gamma in degrees (repeatable).")
 @click.option("--methods", metavar="M1,M2,...", help="Rows of methods (one input): compare the algorithms.")
 @click.option("--per-label", is_flag=True, help="Rows of labels (one input with labels): all, then each alone.")
+@_slice_options_decorator
 @_render_options_decorator
-def sheet_command(inputs, output_path, views, angles, methods, per_label, **options):
+def sheet_command(inputs, output_path, views, view_list, angles, methods, per_label, **options):
     """Lay out pictures in a grid: one input's views x methods (--methods) or x labels (--per-label), or several
-    inputs' views.
+    inputs' views; with --slices or --projection, one study's QC sheet: its surfaces, projections and slices with
+    the labels over them, captioned, and a table of its labels (name, colour, voxels, mL).
     """
-    given = [flag(name) for name in _output_paths(options)]         # a sheet writes the picture alone
+    given = [flag(name) for name in _output_paths(options) if name != "dicom"]   # a sheet writes the picture alone
     if given:
         raise InputError(f"a sheet is one picture: {', '.join(given)} cannot apply; use render or batch")
-    output.check_writable(output_path)
-    chosen = batch.parse_views(views, [parse.vector(a, "angles") for a in angles])
+    dicom = options.get("dicom")
+    for path in (output_path, dicom):
+        if path is not None:
+            output.check_writable(path)
+    names = [*views, *(parse.planes(view_list) if view_list else ())]
+    chosen = batch.parse_views(names, [parse.vector(a, "angles") for a in angles])
     columns = [(v.label, (v.alpha, v.beta, v.gamma)) for v in chosen]
     render_options = _render_options(options)
     read, prepare = _read_options(options), _prep_options(options)
+    slice_options = _slice_options(options)
     if methods and per_label:
         raise InputError("give --methods or --per-label, not both: a sheet has one kind of row")
     if (methods or per_label) and len(inputs) > 1:
         raise InputError(f"give one input for {'--methods' if methods else '--per-label'}, or several without it")
+    if slice_options is not None or render_options.projection:
+        if methods or per_label or len(inputs) > 1:
+            raise InputError("a QC sheet (--slices, --projection) is of one study: give one input, without "
+                             "--methods or --per-label; 'voxrender batch --sheet' makes one per study")
+        from .qc import qc_sheet
+        from .study import load_study
+
+        joins = _dicom_study(inputs[0], options, dicom)
+        study = load_study(inputs[0], read, prepare, progress)
+        rgb = qc_sheet(study, render_options, columns, slice_options, title=str(inputs[0]), progress=progress)
+        _write_with_dicom(output_path, rgb, dicom, joins, f"QC sheet of {', '.join(v.label for v in chosen)}"
+                          + (f", {render_options.projection}" if render_options.projection else "")
+                          + (f", slices {', '.join(slice_options.planes)}" if slice_options else ""))
+        click.echo(f"{output_path}: the QC sheet of {inputs[0]}")
+        return
+    if dicom is not None:
+        raise InputError("a DICOM picture is made of one study: give --slices or --projection for its QC sheet, or "
+                         "use render", parameter="dicom")
     if methods:
         loaded = load_segments(inputs[0], read, prepare, progress)
         rows = [(name, loaded, replace(render_options, method=name, method_options={}))

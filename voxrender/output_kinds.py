@@ -40,7 +40,12 @@ class Need:
 
 
 GRADIENT_NORMALS = Need("normals", "normals are kept with gradient shading only; drop the normals outputs or shade "
-                        "by gradient", "shading", lambda options: options.shading == "gradient")
+                        "by gradient", "shading",
+                        lambda options: options.shading == "gradient" and not options.projection)
+DEPTH = Need("depth", "a projection has no depth, its pixels hold grey values; drop the depth outputs, or write the "
+             "values", "projection", lambda options: not options.projection)
+VALUES = Need("values", "only a projection has grey values to write; choose a projection (mip, minip or mean)",
+              "projection", lambda options: bool(options.projection))
 LABELS = Need("labels", "the object has no labels to write; render the labels of a label map")
 
 
@@ -81,7 +86,8 @@ def _write_report(path, result, about):
         "method": image.method, "seconds": result.seconds, "stats": image.stats,
         "view": {"alpha": image.view.alpha, "beta": image.view.beta, "gamma": image.view.gamma,
                  "scale": image.view.scale, "size": list(image.view.size)},
-        "covered_pixels": int(image.coverage.sum()), **(about or {})})
+        "covered_pixels": int(image.coverage.sum()),
+        **{k: v for k, v in (about or {}).items() if k != "dicom_study"}})      # the source's header: not JSON
 
 
 # In the order of the commands' help and of Outputs' fields; the picture first.
@@ -91,10 +97,11 @@ OUTPUTS = {
         lambda path, result, about: output.write_png(path, result.rgb)),
     "depth": OutputKind(
         ".npy", "Save the depth image (float32, +inf background); in a batch, a pattern like --pattern.",
-        lambda path, result, about: output.write_npy(path, result.image.depth), "depth-out"),
+        lambda path, result, about: output.write_npy(path, result.image.depth), "depth-out", DEPTH),
     "depth_png": OutputKind(
         ".png", "Save depth as a 16-bit PNG (near bright, background 0); in a batch, a pattern.",
-        lambda path, result, about: output.write_png(path, shade.depth_to_uint16(result.image.depth)), "depth-png"),
+        lambda path, result, about: output.write_png(path, shade.depth_to_uint16(result.image.depth)), "depth-png",
+        DEPTH),
     "stats_json": OutputKind(
         ".json", "Save timings and the renderer's statistics as JSON; in a batch, a pattern.",
         _write_report, "stats-json", report=True),
@@ -113,6 +120,9 @@ OUTPUTS = {
     "label_png": OutputKind(
         ".png", "Save the label image (16-bit, one label per pixel, 0 background); in a batch, a pattern.",
         lambda path, result, about: output.write_png(path, result.labels), "label-png", LABELS),
+    "values": OutputKind(
+        ".npy", "Save a projection's values (float32 in the input's units, NaN where the ray meets no voxel); in a "
+        "batch, a pattern.", lambda path, result, about: output.write_npy(path, result.values), "values-out", VALUES),
     "dicom": OutputKind(
         ".dcm", "Save the picture as an RGB DICOM Secondary Capture in a new series of the source study; in a batch, "
         "a pattern.", write_dicom_output, "dicom-out"),

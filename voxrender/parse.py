@@ -178,3 +178,65 @@ def raw_layout(text):
     if dtype.kind not in "uif":
         raise InputError(f"dtype {name!r} is not numeric", parameter="raw")
     return RawLayout(int(width), int(height), dtype.newbyteorder(orders[endian and endian.lower()]))
+
+
+def window(text):
+    """A display window: ``"LEVEL/WIDTH"`` or a CT window's name (brain, soft-tissue, bone, lung; see
+    :data:`voxrender.display.CT_WINDOWS`).
+
+    >>> window("40/400"), window("bone")
+    (DisplayWindow(level=40.0, width=400.0), DisplayWindow(level=400, width=1800))
+    """
+    from .display import CT_WINDOWS, DisplayWindow
+
+    name = str(text).strip().lower().replace("_", "-").replace(" ", "-")
+    if name in CT_WINDOWS or name == "soft":
+        return CT_WINDOWS.get(name, CT_WINDOWS["soft-tissue"])
+    level, slash, width = str(text).partition("/")
+    try:
+        numbers = (float(level), float(width)) if slash else ()
+    except ValueError:
+        numbers = ()
+    if not numbers:
+        raise InputError(f"{text!r} must be LEVEL/WIDTH, e.g. 40/400, or one of {', '.join(CT_WINDOWS)}",
+                         parameter="window")
+    return DisplayWindow(*numbers)
+
+
+def planes(text):
+    """Slice planes ``"axial,coronal"`` as a tuple (checked by :class:`voxrender.qc.SliceOptions`).
+
+    >>> planes("axial, sagittal")
+    ('axial', 'sagittal')
+    """
+    return tuple(p.strip().lower() for p in str(text).split(",") if p.strip())
+
+
+def slice_point(text):
+    """Where slices cross: ``"centre"`` (``None``), ``"labels"`` or ``"labels:largest"`` (through each label's
+    centroid or largest cross-section), or a point ``"x,y,z"`` in patient mm (LPS), or in voxels with ``vox`` after
+    it (``"256,256,117vox"``).
+
+    >>> slice_point("centre"), slice_point("labels:largest"), slice_point("10,-20,35")
+    (None, 'largest', SlicePoint(x=10.0, y=-20.0, z=35.0, unit='mm'))
+    >>> slice_point("256,256,117vox").unit
+    'voxel'
+    """
+    from .slices import SlicePoint
+
+    words = str(text).strip().lower()
+    if words in ("centre", "center"):
+        return None
+    if words in ("labels", "labels:centroid", "labels:largest"):
+        return "largest" if words.endswith("largest") else "centroid"
+    unit = "mm"
+    for ending, name in (("vox", "voxel"), ("mm", "mm")):
+        if words.endswith(ending):
+            words, unit = words[:-len(ending)], name
+            break
+    try:
+        x, y, z = vector(words, "at")
+    except InputError:
+        raise InputError(f"{text!r} must be x,y,z in mm (patient LPS), x,y,zvox in voxels, centre, labels or "
+                         "labels:largest", parameter="at") from None
+    return SlicePoint(x, y, z, unit)

@@ -96,7 +96,7 @@ def slice_pictures(study, options=None, colours=None):
     >>> study = Study(Volume(np.arange(60.0).reshape(3, 4, 5), (1.0, 1.0, 2.0)))
     >>> rows = slice_pictures(study, SliceOptions(overlay=None, size=(32, 32)))
     >>> [caption for caption, _ in rows[0]], rows[0][0][1].shape
-    (['axial 1 of 3', 'coronal 2 of 4', 'sagittal 3 of 5'], (32, 32, 3))
+    (['axial 2 of 3', 'coronal 3 of 4', 'sagittal 3 of 5'], (32, 32, 3))
     """
     from .marks import edge_letters
     from .slices import PLANES, label_slices, plane_image, slice_index, slice_picture
