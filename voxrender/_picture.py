@@ -311,8 +311,15 @@ def _projection(segments, view, options, study, progress):
              **({"slab": list(slab)} if slab else {})}
     image = DepthImage(np.where(seen, np.float32(0), np.float32(np.inf)), view, options.projection, stats,
                        seconds["render"])
-    return Picture(rgb, image, {**seconds, "shade": time.perf_counter() - started}, values=values,
-                   projection=options.projection)
+    table, rows = None, None
+    if segments.labels is not None:                     # the labels' list, as a surface picture of them has it
+        from .labels import label_list
+
+        table, voxels = label_table(segments, options.colours), segments.label_voxels()
+        rows = label_list({k: v for k, v in table.items() if voxels.get(k)}, voxels, segments.spacing,
+                          ml=segments.meta.get("label_ml"))
+    return Picture(rgb, image, {**seconds, "shade": time.perf_counter() - started}, label_table=table,
+                   label_rows=rows, values=values, projection=options.projection)
 
 
 def _why_empty(segments, view, options):

@@ -306,8 +306,7 @@ def _slice_options(options, planes=None, legend=False):
         if given:
             raise InputError(f"{', '.join(given)} apply to slices; give --slices axial,coronal,sagittal too")
         return None
-    labelled = bool(options.get("labels") or options.get("label") or options.get("labels_from"))
-    overlay = options.get("overlay") or ("fill" if labelled else "none")
+    overlay = options.get("overlay") or "auto"
     return SliceOptions(planes, parse.slice_point(options["at"]) if options.get("at") else None,
                         parse.window(options["window"]) if options.get("window") else None,
                         None if overlay == "none" else overlay, options["opacity"], legend=legend)

@@ -32,8 +32,9 @@ class SliceOptions:
         label.
     window : DisplayWindow, optional
         The grey values' window (default: soft tissue for CT in HU, else the 1st to 99th percentile).
-    overlay : {"fill", "outline", "both"} or None
-        How the labels are drawn over the grey values; ``None`` draws none.
+    overlay : {"auto", "fill", "outline", "both"} or None
+        How the labels are drawn over the grey values; ``None`` draws none, ``"auto"`` fills them when the study has
+        labels.
     opacity : float
         Of the filled labels, in [0, 1].
     size : (H, W)
@@ -45,13 +46,13 @@ class SliceOptions:
     planes: tuple = ("axial", "coronal", "sagittal")
     at: object = None
     window: object = None
-    overlay: str | None = "fill"
+    overlay: str | None = "auto"
     opacity: float = 0.4
     size: tuple = (512, 512)
     legend: bool = False
 
     def __post_init__(self):
-        from .slices import PLANES
+        from .slices import OVERLAYS, PLANES
 
         unknown = [p for p in self.planes if p not in PLANES]
         if unknown or not self.planes:
@@ -60,6 +61,8 @@ class SliceOptions:
         if isinstance(self.at, str) and self.at not in PLACES:
             raise InputError(f"{self.at!r}: slices through the labels go through each one's {' or '.join(PLACES)}",
                              parameter="at")
+        if self.overlay not in ("auto", None, *OVERLAYS):
+            raise InputError(f"{self.overlay!r}: draw the labels as one of {', '.join(OVERLAYS)}", parameter="overlay")
         if not 0 <= self.opacity <= 1:
             raise InputError(f"{self.opacity:g} must lie between 0 and 1", parameter="opacity")
 
@@ -94,7 +97,7 @@ def slice_pictures(study, options=None, colours=None):
     >>> from voxrender.io import Volume
     >>> from voxrender.study import Study
     >>> study = Study(Volume(np.arange(60.0).reshape(3, 4, 5), (1.0, 1.0, 2.0)))
-    >>> rows = slice_pictures(study, SliceOptions(overlay=None, size=(32, 32)))
+    >>> rows = slice_pictures(study, SliceOptions(size=(32, 32)))
     >>> [caption for caption, _ in rows[0]], rows[0][0][1].shape
     (['axial 2 of 3', 'coronal 3 of 4', 'sagittal 3 of 5'], (32, 32, 3))
     """
@@ -104,7 +107,10 @@ def slice_pictures(study, options=None, colours=None):
 
     options = options or SliceOptions()
     volume, labels = study.volume, study.labels
-    if options.overlay is not None and labels is None:
+    overlay = options.overlay
+    if overlay == "auto":
+        overlay = None if labels is None else "fill"
+    if overlay is not None and labels is None:
         raise InputError("an overlay draws labels, and this input has none; give its label map, or draw no overlay",
                          parameter="overlay")
     if isinstance(options.at, str) and labels is None:
@@ -117,7 +123,7 @@ def slice_pictures(study, options=None, colours=None):
     def draw(plane, index, caption):
         image, pixel_mm = plane_image(grey, volume.spacing, plane, index)
         label_slice = None if labels is None else plane_image(labels, volume.spacing, plane, index)[0]
-        rgb = slice_picture(image, pixel_mm, window, label_slice, table, options.overlay, options.opacity,
+        rgb = slice_picture(image, pixel_mm, window, label_slice, table, overlay, options.opacity,
                             options.size, edge_letters(View.preset(PLANES[plane])), True, options.legend)
         return caption, rgb
 
