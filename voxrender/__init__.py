@@ -49,6 +49,13 @@ _PUBLIC = {
     "RenderOptions": "._picture",
     "View": ".view",
     "InputError": ".errors",
+    "load_study": ".study",
+    "Study": ".study",
+    "project": ".project",
+    "DisplayWindow": ".display",
+    "SliceOptions": ".qc",
+    "slice_pictures": ".qc",
+    "qc_sheet": ".qc",
 }
 
 __all__ = ["__version__", *_PUBLIC]
