@@ -10,6 +10,8 @@ It measures, on ``vhf_head`` at 300 HU (512 x 512 pictures at scale 1):
   (the skin: the whole head is the object) at the paper's orientations;
 * VTK's CPU ray caster (``vtkFixedPointVolumeRayCastMapper``) on the same volume and views,
   when ``vtk`` is installed (``pip install -e '.[peers]'``);
+* the maximum intensity projection (``voxrender.project``) of the grey volume at the anterior view and
+  two oblique ones, beside VTK's (the same caster, maximum-intensity blend), with their ratio;
 * the whole command, DICOM folder to PNG, in a fresh process;
 * the paper's section 6 analysis: render time against N for a sphere and for a
   convoluted object (a gyroid), with fitted exponents;
@@ -119,20 +121,7 @@ class VtkPeer:
     interpolation, parallel projection, the same picture size and view direction."""
 
     def __init__(self, values, threshold):
-        import vtk
-        from vtk.util import numpy_support
-
-        vtk.vtkObject.GlobalWarningDisplayOff()
-        self.vtk = vtk
-        nz, ny, nx = values.shape
-        image = vtk.vtkImageData()
-        image.SetDimensions(nx, ny, nz)
-        image.GetPointData().SetScalars(numpy_support.numpy_to_vtk(
-            np.ascontiguousarray(values, dtype=np.float32).ravel(), deep=True))
-        self.mapper = vtk.vtkFixedPointVolumeRayCastMapper()
-        self.mapper.SetInputData(image)
-        self.mapper.AutoAdjustSampleDistancesOff()
-        self.mapper.SetSampleDistance(1.0)
+        vtk = self._start(np.ascontiguousarray(values, dtype=np.float32))
         opacity = vtk.vtkPiecewiseFunction()
         low = float(np.min(values)) - 1
         opacity.AddPoint(low, 0.0)
@@ -143,6 +132,29 @@ class VtkPeer:
         prop.SetScalarOpacity(opacity)
         prop.SetInterpolationTypeToNearest()
         prop.ShadeOn()
+        self._finish(prop)
+
+    def _start(self, values):
+        """The volume as VTK image data and the mapper (sample distance 1 voxel, not adjusted); returns ``vtk``."""
+        import vtk
+        from vtk.util import numpy_support
+
+        vtk.vtkObject.GlobalWarningDisplayOff()
+        self.vtk = vtk
+        nz, ny, nx = values.shape
+        image = vtk.vtkImageData()
+        image.SetDimensions(nx, ny, nz)
+        image.GetPointData().SetScalars(numpy_support.numpy_to_vtk(values.ravel(), deep=True))
+        self.mapper = vtk.vtkFixedPointVolumeRayCastMapper()
+        self.mapper.SetInputData(image)
+        self.mapper.AutoAdjustSampleDistancesOff()
+        self.mapper.SetSampleDistance(1.0)
+        self.centre = (np.array([nx, ny, nz]) - 1) / 2
+        return vtk
+
+    def _finish(self, prop):
+        """The scene: the volume with ``prop`` in an off-screen window."""
+        vtk = self.vtk
         volume = vtk.vtkVolume()
         volume.SetMapper(self.mapper)
         volume.SetProperty(prop)
@@ -151,9 +163,9 @@ class VtkPeer:
         self.window = vtk.vtkRenderWindow()
         self.window.SetOffScreenRendering(1)
         self.window.AddRenderer(self.renderer)
-        self.centre = (np.array([nx, ny, nz]) - 1) / 2
 
-    def time(self, view, repeat):
+    def aim(self, view):
+        """The camera of ``view``: parallel projection, the same picture size, direction, up and scale."""
         height, width = view.size
         self.window.SetSize(width, height)
         camera = self.renderer.GetActiveCamera()
@@ -164,6 +176,10 @@ class VtkPeer:
         camera.SetViewUp(*(-r[1]))                          # picture up is -Y'
         camera.SetParallelScale(height / (2 * view.scale))
         self.renderer.ResetCameraClippingRange()
+        return camera
+
+    def time(self, view, repeat):
+        camera = self.aim(view)
         self.window.Render()  # warm-up
 
         def once():
@@ -171,6 +187,81 @@ class VtkPeer:
             self.window.Render()
 
         return median_seconds(once, repeat)[0]
+
+    def picture(self, view):
+        """The rendered picture of ``view``, (H, W, 3) uint8, top row first (to look at beside ours)."""
+        from vtk.util import numpy_support
+
+        self.aim(view)
+        self.window.Render()
+        grab = self.vtk.vtkWindowToImageFilter()
+        grab.SetInput(self.window)
+        grab.ReadFrontBufferOff()
+        grab.Update()
+        height, width = view.size
+        rgb = numpy_support.vtk_to_numpy(grab.GetOutput().GetPointData().GetScalars()).reshape(height, width, -1)
+        return rgb[::-1, :, :3]
+
+
+class VtkMipPeer(VtkPeer):
+    """VTK's maximum intensity projection: the same caster and camera with ``SetBlendModeToMaximumIntensity``, on
+    the volume's own values, opacity 1 and a grey ramp over all of them (every sample counts), nearest
+    interpolation, no shading."""
+
+    def __init__(self, values):
+        vtk = self._start(np.ascontiguousarray(values))
+        self.mapper.SetBlendModeToMaximumIntensity()
+        low, high = float(np.min(values)), float(np.max(values))
+        high = max(high, low + 1)
+        opacity = vtk.vtkPiecewiseFunction()
+        opacity.AddPoint(low, 1.0)
+        opacity.AddPoint(high, 1.0)
+        grey = vtk.vtkColorTransferFunction()
+        grey.AddRGBPoint(low, 0.0, 0.0, 0.0)
+        grey.AddRGBPoint(high, 1.0, 1.0, 1.0)
+        prop = vtk.vtkVolumeProperty()
+        prop.SetScalarOpacity(opacity)
+        prop.SetColor(grey)
+        prop.SetInterpolationTypeToNearest()
+        prop.ShadeOff()
+        self._finish(prop)
+
+
+PROJECTION_VIEWS = {"anterior": (90.0, 0.0, 0.0), "oblique (30, 10)": (30.0, 10.0, 0.0),
+                    f"random {RANDOM_VIEWS[0]}": (*RANDOM_VIEWS[0], 0.0)}
+
+
+def bench_projection(values, repeat, peer=None, size=512, scale=1.0, views=PROJECTION_VIEWS):
+    """Median seconds of ``project`` (MIP) at each view, beside VTK's MIP of the same view (``peer``, a
+    :class:`VtkMipPeer`), and their ratio; same run, same volume."""
+    from voxrender.project import project
+
+    rows = []
+    for name, angles in views.items():
+        view = View(*angles, (size, size), scale)
+        project(values, view, "mip")                        # warm-up, as VTK gets one
+        row = {"view": name, "angles": list(angles), "seconds": median_seconds(lambda: project(values, view, "mip"),
+                                                                                repeat)[0]}
+        if peer is not None:
+            row["vtk_s"] = peer.time(view, repeat)
+            row["ratio"] = row["seconds"] / row["vtk_s"]
+        rows.append(row)
+    return {"size": size, "scale": scale, "grid_xyz": list(values.shape[::-1]), "rows": rows}
+
+
+def _projection_table(result):
+    vtk = any("vtk_s" in row for row in result["rows"])
+    grid = " x ".join(map(str, result["grid_xyz"]))
+    lines = [f"Maximum intensity projection of the {grid} volume, {result['size']} x {result['size']} at scale "
+             f"{result['scale']:g} (`voxrender.project.project`, exact under cube semantics; median seconds" +
+             ("; VTK's MIP of the same view: vtkFixedPointVolumeRayCastMapper, maximum-intensity blend, nearest "
+              "interpolation, sample distance 1 voxel, its own threads):" if vtk else "):"), "",
+             "| view | voxrender s |" + (" vtk s | voxrender/vtk |" if vtk else ""),
+             "|---|---|" + ("---|---|" if vtk else "")]
+    for row in result["rows"]:
+        lines.append(f"| {row['view']} | {row['seconds']:.3f} |" +
+                     (f" {row['vtk_s']:.3f} | {row['ratio']:.2f} |" if "vtk_s" in row else ""))
+    return lines
 
 
 def bench_stages(path, repeat, size=512, peer=None):
@@ -490,6 +581,8 @@ def markdown(results):
                       f"{fresh['wall']:.2f} s, start-up included."]
         lines += ["", f"Threshold, encode and the grey-level normals {stages['normals_at_encode_s']:.2f} s (once per "
                   "object)"]
+    if results.get("projection"):
+        lines += ["", *_projection_table(results["projection"])]
     if results.get("skin"):
         skin = results["skin"]
         lines += ["", f"vhf_head at {SKIN_THRESHOLD:g} HU (skin: the solid head), {skin['voxels']:,} object voxels, "
@@ -629,11 +722,12 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
     volume = io.read_volume(path)
     read_s = time.perf_counter() - started
     encode, encoded = bench_encode(volume, repeat)
-    peer, vtk_version = None, None
+    peer, mip_peer, vtk_version = None, None, None
     try:
         import vtk
 
         peer, vtk_version = VtkPeer(volume.values, THRESHOLD), vtk.vtkVersion.GetVTKVersion()
+        mip_peer = VtkMipPeer(volume.values)
     except ImportError:
         pass
     skin = Encoded(segments.encode(prep.binarize(volume, SKIN_THRESHOLD)[0]))
@@ -646,6 +740,7 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
             "skin": {"voxels": skin.segments.voxel_count, "segments": skin.segments.segment_count,
                      "views": bench_views(skin, repeat, views=PAPER_VIEWS)},
             "stages": bench_stages(path, repeat, peer=peer),
+            "projection": bench_projection(volume.values, repeat, peer=mip_peer),
             "pipeline": bench_pipeline(path, max(1, repeat // 2)) if pipeline else {"command": "", "seconds": math.nan,
                                                                                    "method": DEFAULT_METHOD},
             "scaling": bench_scaling(repeat, scaling_sizes),

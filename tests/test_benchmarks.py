@@ -56,3 +56,23 @@ def test_mask_folder_section_runs_small():
 
     result = bench_mask_folder(1, shape=(12, 16, 20), count=5)
     assert result["masks"] == 5 and result["grid_xyz"] == [20, 16, 12] and result["mask_folder_s"] > 0
+
+
+def test_projection_section_runs_small():
+    """The MIP section on a tiny volume, beside VTK's when VTK is installed."""
+    values = np.random.default_rng(5).integers(-1000, 2000, size=(12, 16, 20)).astype(np.int16)
+    try:
+        peer = bench.VtkMipPeer(values)
+    except ImportError:
+        peer = None
+    result = bench.bench_projection(values, 1, peer=peer, size=32)
+    assert [row["view"] for row in result["rows"]] == list(bench.PROJECTION_VIEWS)
+    assert all(row["seconds"] > 0 for row in result["rows"])
+    if peer is not None:
+        assert all(row["vtk_s"] > 0 and row["ratio"] > 0 for row in result["rows"])
+        picture = peer.picture(View(90.0, 0.0, 0.0, (32, 32), 1.0))
+        assert picture.shape == (32, 32, 3) and picture.any()
+    text = "\n".join(bench._projection_table(result))
+    assert "| anterior |" in text and result["grid_xyz"] == [20, 16, 12]
+    alone = bench.bench_projection(values, 1, size=16)          # without VTK: no peer columns
+    assert not any("vtk_s" in row for row in alone["rows"]) and "vtk" not in "".join(bench._projection_table(alone))

@@ -13,6 +13,7 @@ it crosses.
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 
@@ -23,7 +24,8 @@ PROJECTIONS = ("mip", "minip", "mean")
 # Points this close (in input voxels) to a face count as on it: a ray that starts on a clip face or a volume face
 # takes the voxel inside, whatever the rounding of its start.
 _ON_FACE = 1e-9
-_RAYS_PER_CHUNK = 1 << 16   # rays gathered at once in a layer: their temporaries stay in the cache
+_RAYS_PER_CHUNK = 1 << 15   # rays gathered at once in a layer: their temporaries stay in the cache
+_THREADS = min(2, os.cpu_count() or 1)
 
 
 def project(values, view, mode="mip", *, shape=None, step=(1.0, 1.0, 1.0), clip=None, slab=None, progress=None):
@@ -265,64 +267,217 @@ def _project_along_axis(values, rays, mode, progress):
     return _finished(mode, best[lookup], found[lookup])
 
 
+def _flat(values):
+    """A 1-D view of the memory holding ``values`` (no copy, whatever its strides: a cropped, transposed or
+    flipped view of a volume) and the flat index of voxel ``(x, y, z)``: ``origin + x * ex + y * ey + z * ez``.
+    """
+    itemsize = values.itemsize
+    if any(s % itemsize for s in values.strides):
+        values = np.ascontiguousarray(values)                # odd strides (rare): a copy is the only way
+    strides = [s // itemsize for s in values.strides]         # per array axis (z, y, x)
+    low = [n - 1 if s < 0 else 0 for n, s in zip(values.shape, strides, strict=True)]
+    span = sum(abs(s) * (n - 1) for n, s in zip(values.shape, strides, strict=True)) + 1
+    start = values[tuple(slice(i, i + 1) for i in low)]
+    flat = np.lib.stride_tricks.as_strided(start, shape=(span,), strides=(itemsize,), writeable=False)
+    origin = -sum(i * s for i, s in zip(low, strides, strict=True))
+    return flat, origin, tuple(strides[::-1])
+
+
+class _Layers:
+    """What following the rays through the layers across axis ``a`` needs: the axes, the volume's flat memory and
+    the rays' layers.
+    """
+
+    def __init__(self, values, rays):
+        d = rays.direction
+        self.a = int(np.argmax(np.abs(d)))
+        self.b, self.c = (k for k in range(3) if k != self.a)      # c's voxels are further apart in memory
+        self.sizes = values.shape[::-1]                              # (nx, ny, nz)
+        self.flat, self.origin, self.strides = _flat(values)
+        ends = np.stack([rays.q0[self.a] + rays.t0 * d[self.a], rays.q0[self.a] + rays.t1 * d[self.a]])
+        n = self.sizes[self.a]
+        # the layers each ray passes through for a positive length
+        self.first = np.clip(np.floor(ends.min(axis=0) + 0.5 + _ON_FACE), 0, n - 1).astype(np.intp)
+        self.last = np.clip(np.ceil(ends.max(axis=0) + 0.5 - _ON_FACE) - 1, self.first, n - 1).astype(np.intp)
+
+    def gather(self, cells, mode, dtype):
+        """The values of voxels ``cells`` (flat indices), NaN and infinite ones replaced by the fold's neutral value
+        (for the maximum and minimum) or returned with a mask of the finite ones (for the mean).
+        """
+        found = self.flat.take(cells)
+        if dtype.kind != "f":
+            return found
+        if mode == "mean":
+            finite = np.isfinite(found)
+            return np.where(finite, found, 0), finite
+        return np.where(np.isfinite(found), found, _ignored(mode, dtype))
+
+
 def _project_through_layers(values, rays, mode, progress):
     """Any view: the rays followed through the layers of voxels across their main axis (see :func:`project`)."""
-    d = rays.direction
-    a = int(np.argmax(np.abs(d)))
-    minor = [k for k in range(3) if k != a]
-    sizes = values.shape[::-1]                                  # (nx, ny, nz)
-    strides = (1, sizes[0], sizes[0] * sizes[1])                # flat index = x + nx (y + ny z)
-    flat = values.reshape(-1) if values.flags.c_contiguous else np.ravel(values)
-    float_values = values.dtype.kind == "f"
-    n = rays.count
-    # the layers each ray passes through with a positive length
-    ends = np.stack([rays.q0[a] + rays.t0 * d[a], rays.q0[a] + rays.t1 * d[a]])
-    first = np.clip(np.floor(ends.min(axis=0) + 0.5 + _ON_FACE), 0, sizes[a] - 1).astype(np.int32)
-    last = np.clip(np.ceil(ends.max(axis=0) + 0.5 - _ON_FACE) - 1, first, sizes[a] - 1).astype(np.int32)
+    layers = _Layers(values, rays)
     if mode == "mean":
-        total, length = np.zeros(n), np.zeros(n)
-    else:
-        best = np.full(n, _ignored(mode, values.dtype), values.dtype)
-        found = np.zeros(n, bool)
+        return _mean_through_layers(values, rays, layers, progress)
     fold = np.maximum if mode == "mip" else np.minimum
-    layers = range(int(first.min()), int(last.max()) + 1)
+    best = np.full(rays.count, _ignored(mode, values.dtype), values.dtype)
+    # the first and last layer of each ray, which it may enter or leave through the limits, one by one ...
+    for end in (layers.first, layers.last):
+        for start in range(0, rays.count, _RAYS_PER_CHUNK):
+            chosen = slice(start, start + _RAYS_PER_CHUNK)
+            cells, _ = _layer_cells(rays, chosen, end[chosen], layers)
+            for c in cells:
+                best[chosen] = fold(best[chosen], layers.gather(c, mode, values.dtype))
+    # ... and the layers between, which it passes through whole, all together: the faces in as many runs as
+    # there are threads (NumPy lets go of Python's lock in its passes), each into its own copy of the result
+    faces = range(int(layers.first.min()) + 1, int(layers.last.max()) + 1)
+    runs = max(1, min(_THREADS, len(faces) // 32))
+    bounds = np.linspace(faces.start, faces.stop, runs + 1).astype(int)
+    parts = [range(max(low - 1, faces.start), high) for low, high in zip(bounds[:-1], bounds[1:], strict=True)]
+    results = [best] + [best.copy() for _ in parts[1:]]
+    work = [(values, rays, layers, mode, out, part, progress if k == 0 else None)
+            for k, (out, part) in enumerate(zip(results, parts, strict=True))]
+    if runs == 1:
+        _fold_whole_layers(*work[0])
+    else:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(runs) as pool:
+            list(pool.map(lambda args: _fold_whole_layers(*args), work))
+        for other in results[1:]:
+            fold(best, other, out=best)
+    out = best.astype(np.float32)
+    if values.dtype.kind == "f":
+        out[best == _ignored(mode, values.dtype)] = np.nan
+    return out
+
+
+def _mean_through_layers(values, rays, layers, progress):
+    """The path-length-weighted mean: every layer of every ray, its three voxels weighted by their lengths."""
+    total, length = np.zeros(rays.count), np.zeros(rays.count)
+    steps = range(int(layers.first.min()), int(layers.last.max()) + 1)
     if progress is not None:
-        layers = progress(layers, len(layers), mode)
-    for layer in layers:
-        active = np.flatnonzero((first <= layer) & (last >= layer))
+        steps = progress(steps, len(steps), "mean")
+    for layer in steps:
+        active = np.flatnonzero((layers.first <= layer) & (layers.last >= layer))
         for start in range(0, active.size, _RAYS_PER_CHUNK):
             chosen = active[start:start + _RAYS_PER_CHUNK]
-            if chosen.size == n:
-                chosen = slice(None)
-            cells, weights = _layer_cells(rays, chosen, layer, a, minor, sizes, strides)
-            gathered = [flat.take(c) for c in cells]
-            if float_values:
-                finite = [np.isfinite(g) for g in gathered]
-            if mode == "mean":
-                for g, w, k in zip(gathered, weights, range(3), strict=True):
-                    if float_values:
-                        w = np.where(finite[k], w, 0.0)
-                        g = np.where(finite[k], g, 0)
-                    total[chosen] += g * w
-                    length[chosen] += w
-            else:
-                if float_values:
-                    gathered = [np.where(f, g, _ignored(mode, values.dtype)) for g, f in zip(gathered, finite,
-                                                                                               strict=True)]
-                    found[chosen] |= finite[0] | finite[1] | finite[2]
-                best[chosen] = fold(best[chosen], fold(fold(gathered[0], gathered[1]), gathered[2]))
-    if mode == "mean":
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return (total / np.where(length > 0, length, np.nan)).astype(np.float32)
-    return _finished(mode, best, found if float_values else np.ones(n, bool))
+            cells, weights = _layer_cells(rays, chosen, layer, layers)
+            for c, w in zip(cells, weights, strict=True):
+                found = layers.gather(c, "mean", values.dtype)
+                if values.dtype.kind == "f":
+                    found, finite = found
+                    w = np.where(finite, w, 0.0)
+                total[chosen] += found * w
+                length[chosen] += w
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (total / np.where(length > 0, length, np.nan)).astype(np.float32)
 
 
-def _layer_cells(rays, chosen, layer, a, minor, sizes, strides):
-    """The (up to) three voxels the ``chosen`` rays pass through in ``layer`` along axis ``a``: flat indices of
-    the voxel where each enters the layer, the one between its two crossings of the other axes' faces, and the
-    one where it leaves; and the length (in ``Z'``) each is passed through for.
+def _fold_whole_layers(values, rays, layers, mode, best, faces, progress):
+    """Fold into ``best`` the voxels of the layers each ray passes through whole (between its first and last) and
+    that lie between ``faces`` (a range of faces ``q_a = j - 1/2``).
+
+    The face between layers ``j - 1`` and ``j`` is crossed by every ray at a point whose voxel indices along the
+    other two axes b, c are ``floor(A + j r)`` (``r = d_b / d_a``, ``A`` per ray): with ``A = I + f`` (whole and
+    fractional parts) and ``j r = K + phi``, that is ``I + K + (f >= 1 - phi)``, one comparison per ray.  The two
+    voxels on either side of that point, in layers ``j - 1`` and ``j``, are the one where the ray leaves layer
+    ``j - 1`` and the one where it enters layer ``j``: the larger (smaller) of the two slices, taken once per face,
+    is looked up there.  A ray that crosses a face along both b and c within a layer passes through a third voxel
+    between the crossings; the side of the edge between them it passes on tells which, and only the rays that
+    do are looked up again.
     """
+    a, b, c = layers.a, layers.b, layers.c
     d = rays.direction
+    axis = 2 - a                                       # the array axis of the layers
+    nb, nc = layers.sizes[b], layers.sizes[c]
+    fold = np.maximum if mode == "mip" else np.minimum
+    neutral = _ignored(mode, values.dtype)
+    rb, rc = d[b] / d[a], d[c] / d[a]
+    # minor index + 1/2 at the face q_a = j - 1/2: A + j r, A = q0 + 1/2 - (q0_a + 1/2) r
+    start_b = rays.q0[b] + 0.5 - (rays.q0[a] + 0.5) * rb
+    start_c = rays.q0[c] + 0.5 - (rays.q0[a] + 0.5) * rc
+    whole_b, whole_c = np.floor(start_b), np.floor(start_c)
+    part_b, part_c = start_b - whole_b, start_c - whole_c
+    # Slices are copied into (nc + 2, nb + 2) buffers whose rim holds the neutral value: a ray that is out of its
+    # limits at a face reads the corner (index 0) there, and one running exactly along the volume's side, where
+    # rounding may take it a voxel out, reads the rim.
+    row = np.intp(nb + 2)
+    base = ((whole_c + 1) * row + whole_b + 1).astype(np.intp)
+    # the side of an edge along a a ray passes on: by F = f_b r_c - f_c r_b against the edge's own (see _middle)
+    side = part_b * rc - part_c * rb
+    after_first = (layers.first + 1).astype(np.uint64)
+    span = (layers.last - layers.first).astype(np.uint64)
+    chunks = [slice(k, k + _RAYS_PER_CHUNK) for k in range(0, rays.count, _RAYS_PER_CHUNK)]
+    if progress is not None:
+        faces = progress(faces, len(faces), mode)
+    pair = np.full((nc + 2, row), neutral, values.dtype)
+    single = np.full((nc + 2, row), neutral, values.dtype)
+    previous = [None] * len(chunks)
+    steps_before = None
+    for j in faces:
+        here = [slice(None)] * 3
+        here[axis] = j
+        before = list(here)
+        before[axis] = j - 1
+        np.copyto(single[1:-1, 1:-1], _finite(values[tuple(before)], neutral))
+        fold(single[1:-1, 1:-1], _finite(values[tuple(here)], neutral), out=pair[1:-1, 1:-1])
+        steps_b, phase_b = divmod(j * rb, 1.0)
+        steps_c, phase_c = divmod(j * rc, 1.0)
+        shift = int(steps_c * row + steps_b)
+        for n, chosen in enumerate(chunks):
+            carry_b = part_b[chosen] >= 1 - phase_b
+            carry_c = part_c[chosen] >= 1 - phase_c
+            cells = base[chosen] + shift
+            cells += carry_b
+            cells += carry_c * row              # (np.where would be several times slower)
+            # the face lies within the ray's limits: first < j <= last
+            crossed = (np.uint64(j) - after_first[chosen]) < span[chosen]
+            cells *= crossed
+            fold(best[chosen], pair.ravel().take(cells, mode="clip"), out=best[chosen])
+            if previous[n] is not None:
+                moves_b = np.not_equal(previous[n][1], carry_b) if steps_b == steps_before[0] else \
+                    np.equal(previous[n][1], carry_b)
+                moves_c = np.not_equal(previous[n][2], carry_c) if steps_c == steps_before[1] else \
+                    np.equal(previous[n][2], carry_c)
+                both = np.flatnonzero(moves_b & moves_c & crossed)
+                if both.size:
+                    edge = (steps_before[0] + (rb > 0)) * rc - (steps_before[1] + (rc > 0)) * rb
+                    cells_in = _middle(previous[n], both, side[chosen], edge, rb, rc, row)
+                    offset = chosen.start
+                    best[offset + both] = fold(best[offset + both], single.ravel().take(cells_in, mode="clip"))
+            previous[n] = (cells, carry_b, carry_c)
+        steps_before = (steps_b, steps_c)
+
+
+def _middle(entering, both, side, edge, rb, rc, row):
+    """The voxel between the two crossings, in the slice buffer, of the rays ``both`` (entering the layer at
+    ``entering = (cells, carry_b, carry_c)``).
+
+    The ray crosses b's face first when it passes the edge between the two faces on one side: with ``E`` the
+    edge and ``m`` the ray at the entry face, ``(E_b - m_b) r_c - (E_c - m_c) r_b`` has the sign of ``r_b r_c``
+    there, and it is ``edge + carry_b r_c - carry_c r_b - side``.
+    """
+    cells, carry_b, carry_c = (e[both] for e in entering)
+    z = edge + carry_b * rc - carry_c * rb - side[both]
+    b_first = z < 0 if rb * rc > 0 else z > 0
+    along_b, along_c = (1 if rb > 0 else -1), (row if rc > 0 else -row)
+    cells += b_first * (along_b - along_c) + along_c
+    return cells
+
+
+def _finite(values, neutral):
+    """A slice with its NaN and infinite voxels set to ``neutral`` (a copy only for float slices that have some)."""
+    if values.dtype.kind == "f" and not np.isfinite(values).all():
+        return np.where(np.isfinite(values), values, neutral)
+    return values
+
+
+def _layer_cells(rays, chosen, layer, layers):
+    """The (up to) three voxels the ``chosen`` rays pass through in ``layer`` (a number, or one per ray) along the
+    main axis: flat indices of the voxel where each enters the layer, the one between its crossings of the other
+    axes' faces, and the one where it leaves; and the length (in ``Z'``) each is passed through for.
+    """
+    a, d = layers.a, rays.direction
     q0 = [q[chosen] for q in rays.q0]
     # the part of the ray within the layer's faces q_a = layer -+ 1/2 and within its limits
     faces = ((layer - 0.5 - q0[a]) / d[a], (layer + 0.5 - q0[a]) / d[a])
@@ -330,9 +485,9 @@ def _layer_cells(rays, chosen, layer, a, minor, sizes, strides):
     enter = np.maximum(rays.t0[chosen], near)
     leave = np.minimum(rays.t1[chosen], far)
     cell_in, cell_out, crossing = [], [], []
-    for k in minor:
+    for k in (layers.b, layers.c):
         q_in, q_out = q0[k] + enter * d[k], q0[k] + leave * d[k]
-        size = sizes[k]
+        size = layers.sizes[k]
         if d[k] > 0:           # the voxel just after entering and just before leaving: a face point goes inward
             i_in, i_out = np.floor(q_in + 0.5 + _ON_FACE), np.ceil(q_out + 0.5 - _ON_FACE) - 1
         elif d[k] < 0:
@@ -352,8 +507,8 @@ def _layer_cells(rays, chosen, layer, a, minor, sizes, strides):
     first_crossing = np.minimum(crossing[0], crossing[1])
     second_crossing = np.maximum(crossing[0], crossing[1])
     b_first = crossing[0] < crossing[1]                 # the middle voxel has b's new index and c's old one
-    base = layer * strides[a]
-    (sb, sc), (bin_, cin), (bout, cout) = (strides[k] for k in minor), cell_in, cell_out
+    base = layers.origin + layer * layers.strides[a]
+    (sb, sc), (bin_, cin), (bout, cout) = (layers.strides[k] for k in (layers.b, layers.c)), cell_in, cell_out
     entry = base + bin_ * sb + cin * sc
     leaving = base + bout * sb + cout * sc
     middle = np.where(b_first, base + bout * sb + cin * sc, base + bin_ * sb + cout * sc)
