@@ -68,12 +68,18 @@ class SliceOptions:
 
 
 def default_window(volume):
-    """The window slices and projections of ``volume`` are shown through when none is given: soft tissue for CT (in
-    HU), else the 1st to 99th percentile of its values.
+    """The window slices of ``volume`` are shown through when none is given: soft tissue for CT in HU (as DICOM says,
+    or as the values show: air at about -1000), else the 1st to 99th percentile of its values.
     """
     from .display import CT_WINDOWS, auto_window
 
-    return CT_WINDOWS["soft-tissue"] if volume.meta.get("units") == "HU" else auto_window(volume.values)
+    if volume.meta.get("units") == "HU":
+        return CT_WINDOWS["soft-tissue"]
+    values = np.asarray(volume.values[::max(1, volume.shape[0] // 16)])      # a few slices tell
+    finite = values[np.isfinite(values)] if values.dtype.kind == "f" else values.ravel()
+    if finite.size and -1100 <= finite.min() <= -900 and finite.max() >= 200:      # a NIfTI CT, which names no unit
+        return CT_WINDOWS["soft-tissue"]
+    return auto_window(volume.values)
 
 
 def slice_pictures(study, options=None, colours=None):
