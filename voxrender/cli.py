@@ -689,6 +689,9 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
         raise InputError(f"--out {out_dir} is a file; give a folder")
     patterns = batch.Patterns(pattern, **{name: str(path) for name, path in _output_paths(options).items()})
     slice_options = _slice_options(options)
+    if per_label and options["projection"]:
+        raise InputError("a projection draws grey values, not labels one by one; drop --per-label, or the projection",
+                         parameter="per_label")
     if slice_options is not None and not make_sheet:
         raise InputError("slices are drawn on each input's QC sheet; give --sheet too", parameter="planes")
     if options["dicom_study_from"] and not options.get("dicom"):
