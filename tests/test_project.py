@@ -168,3 +168,27 @@ def test_bad_input(volume, call, parameter):
     with pytest.raises(InputError) as caught:
         call(volume)
     assert caught.value.parameter == parameter
+
+
+def test_long_volumes_along_any_axis(monkeypatch):
+    """Rays along z run through 70 layers, in two runs of faces on two threads, the same as in one; rays along x
+    read their layers in blocks (x is next to x in memory)."""
+    import voxrender.project as module
+
+    values = np.random.default_rng(3).integers(-500, 500, size=(70, 6, 5)).astype(np.int16)
+    view = View(8, -6, 30, size=(10, 10), scale=1.0)
+    monkeypatch.setattr(module, "_THREADS", 2)
+    two = check(values, view)
+    monkeypatch.setattr(module, "_THREADS", 1)
+    np.testing.assert_array_equal(project(values, view), two[0])
+    check(np.ascontiguousarray(values.transpose(1, 2, 0)), View(90, 80, 10, size=(10, 10), scale=1.0))
+
+
+def test_views_of_arrays_are_read_in_place(volume):
+    """A transposed, flipped and cropped view of an array (as the canonical frame and a crop make them) gives
+    what its copy gives."""
+    seen = np.flip(volume.transpose(2, 0, 1), axis=1)[1:, :, 2:-1]
+    for angles in ((30, 10, 0), (90, 0, 0), (10, 80, 0), (60, 120, 25)):
+        view = View(*angles, size=(16, 16), scale=1.0)
+        for mode in PROJECTIONS:
+            np.testing.assert_array_equal(project(seen, view, mode), project(np.ascontiguousarray(seen), view, mode))

@@ -12,6 +12,7 @@ it crosses.
 
 from __future__ import annotations
 
+import copy
 import math
 import os
 
@@ -193,6 +194,13 @@ class _Rays:
         self.q0 = [q[self.pixels] for q in q0]
         self.t0, self.t1 = t0[self.pixels], t1[self.pixels]
 
+    def reordered(self, order):
+        """The same rays in another ``order``."""
+        rays = copy.copy(self)
+        rays.pixels, rays.t0, rays.t1 = self.pixels[order], self.t0[order], self.t1[order]
+        rays.q0 = [q[order] for q in self.q0]
+        return rays
+
 
 def _ignored(mode, dtype):
     """The value that leaves a fold unchanged: below every value for the maximum, above every value for the
@@ -318,6 +326,10 @@ def _project_through_layers(values, rays, mode, progress):
     layers = _Layers(values, rays)
     if mode == "mean":
         return _mean_through_layers(values, rays, layers, progress)
+    # rays side by side that start and end in the same layers: most runs of them then cross every face between
+    order = np.lexsort((layers.last, layers.first))
+    rays = rays.reordered(order)
+    layers.first, layers.last = layers.first[order], layers.last[order]
     fold = np.maximum if mode == "mip" else np.minimum
     best = np.full(rays.count, _ignored(mode, values.dtype), values.dtype)
     # the first and last layer of each ray, which it may enter or leave through the limits, one by one ...
@@ -345,9 +357,10 @@ def _project_through_layers(values, rays, mode, progress):
             list(pool.map(lambda args: _fold_whole_layers(*args), work))
         for other in results[1:]:
             fold(best, other, out=best)
-    out = best.astype(np.float32)
+    out = np.empty(rays.count, np.float32)
+    out[order] = best
     if values.dtype.kind == "f":
-        out[best == _ignored(mode, values.dtype)] = np.nan
+        out[order[best == _ignored(mode, values.dtype)]] = np.nan
     return out
 
 
@@ -408,19 +421,18 @@ def _fold_whole_layers(values, rays, layers, mode, best, faces, progress):
     after_first = (layers.first + 1).astype(np.uint64)
     span = (layers.last - layers.first).astype(np.uint64)
     chunks = [slice(k, k + _RAYS_PER_CHUNK) for k in range(0, rays.count, _RAYS_PER_CHUNK)]
+    # the faces every ray of a chunk crosses (first < j <= last for all of them): no need to ask there
+    crosses_all = [(int(after_first[chosen].max()), int(layers.last[chosen].min())) for chosen in chunks]
     if progress is not None:
         faces = progress(faces, len(faces), mode)
     pair = np.full((nc + 2, row), neutral, values.dtype)
     single = np.full((nc + 2, row), neutral, values.dtype)
     previous = [None] * len(chunks)
     steps_before = None
+    slices = _Slices(values, axis)
     for j in faces:
-        here = [slice(None)] * 3
-        here[axis] = j
-        before = list(here)
-        before[axis] = j - 1
-        np.copyto(single[1:-1, 1:-1], _finite(values[tuple(before)], neutral))
-        fold(single[1:-1, 1:-1], _finite(values[tuple(here)], neutral), out=pair[1:-1, 1:-1])
+        np.copyto(single[1:-1, 1:-1], _finite(slices[j - 1], neutral))
+        fold(single[1:-1, 1:-1], _finite(slices[j], neutral), out=pair[1:-1, 1:-1])
         steps_b, phase_b = divmod(j * rb, 1.0)
         steps_c, phase_c = divmod(j * rc, 1.0)
         shift = int(steps_c * row + steps_b)
@@ -431,8 +443,11 @@ def _fold_whole_layers(values, rays, layers, mode, best, faces, progress):
             cells += carry_b
             cells += carry_c * row              # (np.where would be several times slower)
             # the face lies within the ray's limits: first < j <= last
-            crossed = (np.uint64(j) - after_first[chosen]) < span[chosen]
-            cells *= crossed
+            if crosses_all[n][0] <= j <= crosses_all[n][1]:
+                crossed = True
+            else:
+                crossed = (np.uint64(j) - after_first[chosen]) < span[chosen]
+                cells *= crossed
             fold(best[chosen], pair.ravel().take(cells, mode="clip"), out=best[chosen])
             if previous[n] is not None:
                 moves_b = np.not_equal(previous[n][1], carry_b) if steps_b == steps_before[0] else \
@@ -447,6 +462,33 @@ def _fold_whole_layers(values, rays, layers, mode, best, faces, progress):
                     best[offset + both] = fold(best[offset + both], single.ravel().take(cells_in, mode="clip"))
             previous[n] = (cells, carry_b, carry_c)
         steps_before = (steps_b, steps_c)
+
+
+class _Slices:
+    """The slices ``values[..., j, ...]`` across array ``axis``, asked for in increasing ``j``.  When the axis is the
+    one along which voxels are next to each other in memory, a slice's voxels are each in a cache line (and a
+    disk page) of their own: blocks of slices are then read at once, each line once, and turned.
+    """
+
+    BLOCK = 16
+
+    def __init__(self, values, axis):
+        self.values, self.axis = values, axis
+        others = [abs(s) for k, s in enumerate(values.strides) if k != axis]
+        self.blocks = abs(values.strides[axis]) < min(others)
+        self.start, self.block = None, None
+
+    def __getitem__(self, j):
+        if not self.blocks:
+            index = [slice(None)] * 3
+            index[self.axis] = j
+            return self.values[tuple(index)]
+        if self.start is None or not self.start <= j < self.start + self.BLOCK:
+            self.start = j
+            index = [slice(None)] * 3
+            index[self.axis] = slice(j, j + self.BLOCK)
+            self.block = np.ascontiguousarray(np.moveaxis(self.values[tuple(index)], self.axis, 0))
+        return self.block[j - self.start]
 
 
 def _middle(entering, both, side, edge, rb, rc, row):
