@@ -324,28 +324,32 @@ class _Layers:
 def _project_through_layers(values, rays, mode, progress):
     """Any view: the rays followed through the layers of voxels across their main axis (see :func:`project`)."""
     layers = _Layers(values, rays)
-    if mode == "mean":
-        return _mean_through_layers(values, rays, layers, progress)
     # rays side by side that start and end in the same layers: most runs of them then cross every face between
     order = np.lexsort((layers.last, layers.first))
     rays = rays.reordered(order)
     layers.first, layers.last = layers.first[order], layers.last[order]
-    fold = np.maximum if mode == "mip" else np.minimum
-    best = np.full(rays.count, _ignored(mode, values.dtype), values.dtype)
+    floats = values.dtype.kind == "f"
+    if mode == "mean":
+        result = (np.zeros(rays.count), np.zeros(rays.count))      # the integral of the values, and the length
+    else:
+        result = np.full(rays.count, _ignored(mode, values.dtype), values.dtype)
     # the first and last layer of each ray, which it may enter or leave through the limits, one by one ...
-    for end in (layers.first, layers.last):
-        for start in range(0, rays.count, _RAYS_PER_CHUNK):
-            chosen = slice(start, start + _RAYS_PER_CHUNK)
-            cells, _ = _layer_cells(rays, chosen, end[chosen], layers)
-            for c in cells:
-                best[chosen] = fold(best[chosen], layers.gather(c, mode, values.dtype))
+    ends = ((layers.first, np.arange(rays.count)), (layers.last, np.flatnonzero(layers.last > layers.first)))
+    for end, its_rays in ends:
+        for start in range(0, its_rays.size, _RAYS_PER_CHUNK):
+            chosen = its_rays[start:start + _RAYS_PER_CHUNK]
+            cells, weights = _layer_cells(rays, chosen, end[chosen], layers)
+            _fold_in(result, chosen, cells, weights, layers, mode, values.dtype)
     # ... and the layers between, which it passes through whole, all together: the faces in as many runs as
     # there are threads (NumPy lets go of Python's lock in its passes), each into its own copy of the result
     faces = range(int(layers.first.min()) + 1, int(layers.last.max()) + 1)
     runs = max(1, min(_THREADS, len(faces) // 32))
     bounds = np.linspace(faces.start, faces.stop, runs + 1).astype(int)
     parts = [range(max(low - 1, faces.start), high) for low, high in zip(bounds[:-1], bounds[1:], strict=True)]
-    results = [best] + [best.copy() for _ in parts[1:]]
+    if mode == "mean":
+        results = [result] + [(np.zeros(rays.count), np.zeros(rays.count)) for _ in parts[1:]]
+    else:
+        results = [result] + [result.copy() for _ in parts[1:]]
     work = [(values, rays, layers, mode, out, part, progress if k == 0 else None)
             for k, (out, part) in enumerate(zip(results, parts, strict=True))]
     if runs == 1:
@@ -356,56 +360,62 @@ def _project_through_layers(values, rays, mode, progress):
         with ThreadPoolExecutor(runs) as pool:
             list(pool.map(lambda args: _fold_whole_layers(*args), work))
         for other in results[1:]:
-            fold(best, other, out=best)
+            if mode == "mean":
+                result[0][:] += other[0]
+                result[1][:] += other[1]
+            else:
+                (np.maximum if mode == "mip" else np.minimum)(result, other, out=result)
     out = np.empty(rays.count, np.float32)
-    out[order] = best
-    if values.dtype.kind == "f":
-        out[order[best == _ignored(mode, values.dtype)]] = np.nan
+    if mode == "mean":
+        # every voxel counts, and the length is the ray's, unless some are NaN or infinite
+        length = result[1] if floats else rays.t1 - rays.t0
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out[order] = result[0] / np.where(length > 0, length, np.nan)
+        return out
+    out[order] = result
+    if floats:
+        out[order[result == _ignored(mode, values.dtype)]] = np.nan
     return out
 
 
-def _mean_through_layers(values, rays, layers, progress):
-    """The path-length-weighted mean: every layer of every ray, its three voxels weighted by their lengths."""
-    total, length = np.zeros(rays.count), np.zeros(rays.count)
-    steps = range(int(layers.first.min()), int(layers.last.max()) + 1)
-    if progress is not None:
-        steps = progress(steps, len(steps), "mean")
-    for layer in steps:
-        active = np.flatnonzero((layers.first <= layer) & (layers.last >= layer))
-        for start in range(0, active.size, _RAYS_PER_CHUNK):
-            chosen = active[start:start + _RAYS_PER_CHUNK]
-            cells, weights = _layer_cells(rays, chosen, layer, layers)
-            for c, w in zip(cells, weights, strict=True):
-                found = layers.gather(c, "mean", values.dtype)
-                if values.dtype.kind == "f":
-                    found, finite = found
-                    w = np.where(finite, w, 0.0)
-                total[chosen] += found * w
-                length[chosen] += w
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return (total / np.where(length > 0, length, np.nan)).astype(np.float32)
+def _fold_in(result, chosen, cells, weights, layers, mode, dtype):
+    """Fold the voxels ``cells`` (and their lengths ``weights``) of rays ``chosen`` into ``result``."""
+    for c, w in zip(cells, weights, strict=True):
+        found = layers.gather(c, mode, dtype)
+        if mode == "mean":
+            if dtype.kind == "f":
+                found, finite = found
+                w = np.where(finite, w, 0.0)
+            result[0][chosen] += found * w
+            result[1][chosen] += w
+        else:
+            result[chosen] = (np.maximum if mode == "mip" else np.minimum)(result[chosen], found)
 
 
-def _fold_whole_layers(values, rays, layers, mode, best, faces, progress):
-    """Fold into ``best`` the voxels of the layers each ray passes through whole (between its first and last) and
-    that lie between ``faces`` (a range of faces ``q_a = j - 1/2``).
+def _fold_whole_layers(values, rays, layers, mode, result, faces, progress):
+    """Fold into ``result`` the voxels of the layers each ray passes through whole (between its first and last)
+    and that lie between ``faces`` (a range of faces ``q_a = j - 1/2``).
 
     The face between layers ``j - 1`` and ``j`` is crossed by every ray at a point whose voxel indices along the
     other two axes b, c are ``floor(A + j r)`` (``r = d_b / d_a``, ``A`` per ray): with ``A = I + f`` (whole and
     fractional parts) and ``j r = K + phi``, that is ``I + K + (f >= 1 - phi)``, one comparison per ray.  The two
     voxels on either side of that point, in layers ``j - 1`` and ``j``, are the one where the ray leaves layer
-    ``j - 1`` and the one where it enters layer ``j``: the larger (smaller) of the two slices, taken once per face,
-    is looked up there.  A ray that crosses a face along both b and c within a layer passes through a third voxel
-    between the crossings; the side of the edge between them it passes on tells which, and only the rays that
-    do are looked up again.
+    ``j - 1`` and the one where it enters layer ``j``: for the maximum (minimum) the larger (smaller) of the two
+    slices, taken once per face, is looked up there.  A ray that crosses a face along both b and c within a layer
+    passes through a third voxel between the crossings; the side of the edge between them it passes on tells
+    which, and only the rays that do are looked up again.  For the mean, the fractions of the layer at which a
+    ray crosses b's and c's faces (``lambda_1 <= lambda_2``, 1 for none) weight the voxels where it enters, the
+    one between and the one where it leaves.
     """
     a, b, c = layers.a, layers.b, layers.c
     d = rays.direction
     axis = 2 - a                                       # the array axis of the layers
     nb, nc = layers.sizes[b], layers.sizes[c]
+    mean = mode == "mean"
     fold = np.maximum if mode == "mip" else np.minimum
-    neutral = _ignored(mode, values.dtype)
+    neutral = 0.0 if mean else _ignored(mode, values.dtype)
     rb, rc = d[b] / d[a], d[c] / d[a]
+    layer_length = 1 / abs(d[a])                       # in Z', of a layer passed through whole
     # minor index + 1/2 at the face q_a = j - 1/2: A + j r, A = q0 + 1/2 - (q0_a + 1/2) r
     start_b = rays.q0[b] + 0.5 - (rays.q0[a] + 0.5) * rb
     start_c = rays.q0[c] + 0.5 - (rays.q0[a] + 0.5) * rc
@@ -425,14 +435,27 @@ def _fold_whole_layers(values, rays, layers, mode, best, faces, progress):
     crosses_all = [(int(after_first[chosen].max()), int(layers.last[chosen].min())) for chosen in chunks]
     if progress is not None:
         faces = progress(faces, len(faces), mode)
-    pair = np.full((nc + 2, row), neutral, values.dtype)
-    single = np.full((nc + 2, row), neutral, values.dtype)
+    kind = np.float64 if mean else values.dtype
+    single, here, pair = (np.full((nc + 2, row), neutral, kind) for _ in range(3))
+    # for the mean of a float volume the length counts only finite voxels: 1 where finite, looked up alike
+    counted = [np.zeros((nc + 2, row)) for _ in range(2)] if mean and values.dtype.kind == "f" else None
     previous = [None] * len(chunks)
-    steps_before = None
+    before = None
     slices = _Slices(values, axis)
     for j in faces:
-        np.copyto(single[1:-1, 1:-1], _finite(slices[j - 1], neutral))
-        fold(single[1:-1, 1:-1], _finite(slices[j], neutral), out=pair[1:-1, 1:-1])
+        if mean:                      # single: layer j - 1, here: layer j
+            single, here = here, single
+            if before is None:
+                np.copyto(single[1:-1, 1:-1], _finite(slices[j - 1], neutral))
+            np.copyto(here[1:-1, 1:-1], _finite(slices[j], neutral))
+            if counted is not None:
+                counted.reverse()
+                if before is None:
+                    np.copyto(counted[0][1:-1, 1:-1], np.isfinite(slices[j - 1]))
+                np.copyto(counted[1][1:-1, 1:-1], np.isfinite(slices[j]))
+        else:
+            np.copyto(single[1:-1, 1:-1], _finite(slices[j - 1], neutral))
+            fold(single[1:-1, 1:-1], _finite(slices[j], neutral), out=pair[1:-1, 1:-1])
         steps_b, phase_b = divmod(j * rb, 1.0)
         steps_c, phase_c = divmod(j * rc, 1.0)
         shift = int(steps_c * row + steps_b)
@@ -448,20 +471,59 @@ def _fold_whole_layers(values, rays, layers, mode, best, faces, progress):
             else:
                 crossed = (np.uint64(j) - after_first[chosen]) < span[chosen]
                 cells *= crossed
-            fold(best[chosen], pair.ravel().take(cells, mode="clip"), out=best[chosen])
+            if not mean:
+                fold(result[chosen], pair.ravel().take(cells, mode="clip"), out=result[chosen])
+            both = middle = None
             if previous[n] is not None:
-                moves_b = np.not_equal(previous[n][1], carry_b) if steps_b == steps_before[0] else \
+                moves_b = np.not_equal(previous[n][1], carry_b) if steps_b == before[0] else \
                     np.equal(previous[n][1], carry_b)
-                moves_c = np.not_equal(previous[n][2], carry_c) if steps_c == steps_before[1] else \
+                moves_c = np.not_equal(previous[n][2], carry_c) if steps_c == before[1] else \
                     np.equal(previous[n][2], carry_c)
                 both = np.flatnonzero(moves_b & moves_c & crossed)
                 if both.size:
-                    edge = (steps_before[0] + (rb > 0)) * rc - (steps_before[1] + (rc > 0)) * rb
-                    cells_in = _middle(previous[n], both, side[chosen], edge, rb, rc, row)
-                    offset = chosen.start
-                    best[offset + both] = fold(best[offset + both], single.ravel().take(cells_in, mode="clip"))
-            previous[n] = (cells, carry_b, carry_c)
-        steps_before = (steps_b, steps_c)
+                    edge = (before[0] + (rb > 0)) * rc - (before[1] + (rc > 0)) * rb
+                    middle = _middle(previous[n][:3], both, side[chosen], edge, rb, rc, row)
+                    if not mean:
+                        offset = chosen.start
+                        result[offset + both] = fold(result[offset + both], single.ravel().take(middle, mode="clip"))
+            if not mean:
+                previous[n] = (cells, carry_b, carry_c)
+                continue
+            sources = [(single, here)] + ([tuple(counted)] if counted is not None else [])
+            entering = [now.ravel().take(cells, mode="clip") for _, now in sources]
+            if previous[n] is not None:
+                # layer j - 1, entered at face j - 1 and left at face j: where along it the ray crosses b's and
+                # c's faces
+                crossing = [_fraction(part[chosen], phase, carry, r, moves) for part, phase, carry, r, moves in
+                            ((part_b, before[2], previous[n][1], rb, moves_b),
+                             (part_c, before[3], previous[n][2], rc, moves_c))]
+                first_crossing, second_crossing = np.minimum(*crossing), np.maximum(*crossing)
+                whole = previous[n][3] & crossed if crossed is not True else previous[n][3]
+                for (last, _), entered, total in zip(sources, previous[n][4], result, strict=False):
+                    leaving = last.ravel().take(cells, mode="clip")
+                    integral = leaving + (entered - leaving) * first_crossing
+                    if middle is not None:
+                        integral[both] += ((last.ravel().take(middle, mode="clip") - leaving[both]) *
+                                           (second_crossing[both] - first_crossing[both]))
+                    if whole is not True:
+                        integral *= whole
+                    total[chosen] += integral * layer_length
+            previous[n] = (cells, carry_b, carry_c, crossed, entering)
+        before = (steps_b, steps_c, phase_b, phase_c)
+
+
+def _fraction(part, phase, carry, r, moves):
+    """Where along a layer (0 at the face it is entered by, 1 at the other) a ray crosses a face along a minor
+    axis: ``part + phase - carry`` is the fractional part of its index + 1/2 at the entry face; 1 where it
+    ``moves`` to no other voxel along that axis.
+    """
+    if r == 0:
+        return np.ones(part.shape)
+    inside = part + phase - carry
+    fraction = (1 - inside) / r if r > 0 else inside / -r
+    np.clip(fraction, 0.0, 1.0, out=fraction)
+    fraction[~moves] = 1.0
+    return fraction
 
 
 class _Slices:
