@@ -144,6 +144,8 @@ BAD = {
                                    "{out}/p.png"], ["--window", "width"]),
     "at outside in mm": (["slices", "{ct}", "--at", "0,0,500", "-o", "{out}/s.png"], ["--at", "outside"]),
     "at outside in voxels": (["slices", "{ct}", "--at", "50,0,0vox", "-o", "{out}/s.png"], ["--at", "outside"]),
+    "at outside across another plane": (["slices", "{ct}", "--slices", "axial", "--at", "500,0,0vox", "-o",
+                                         "{out}/s.png"], ["--at", "outside"]),
     "slab thicker than the volume": (["render", "{ct}", "--threshold", "-500", "--projection", "mip", "--slab", "500",
                                       "-o", "{out}/p.png"], ["--slab", "thicker"]),
     "dicom out of a NIfTI": (["render", "{ct}", "--threshold", "-500", "--dicom-out", "{out}/p.dcm", "-o",
@@ -240,10 +242,7 @@ def test_a_batch_puts_a_studys_views_in_one_new_series(tmp_path, dicom_ct):
     assert (again.SeriesInstanceUID, again.InstanceNumber) == (side.SeriesInstanceUID, side.InstanceNumber)
 
 
-@pytest.mark.parametrize("unit", ["", pytest.param("vox", marks=pytest.mark.xfail(
-    strict=True, reason="bug: with --crop, a point in voxels is read on the cropped grid, while --crop itself and a "
-                        "point in mm are on the input's; qc.slice_pictures hands the cropped volume to "
-                        "slices.slice_index unshifted"))])
+@pytest.mark.parametrize("unit", ["", "vox"])
 def test_a_point_names_the_same_slice_with_and_without_a_crop(tmp_path, ct, unit):
     pictures = []
     for name, crop in (("whole", []), ("cropped", ["--crop", "0:20,0:18,4:16"])):
@@ -324,22 +323,20 @@ def test_values_out_is_float32_with_nan_where_rays_miss_and_the_window_maps_them
     assert len(np.unique(expected)) > 2                                # the window spreads them
 
 
-@pytest.mark.xfail(strict=True, reason="bug: the --window help says a CT's default is soft-tissue, but "
-                   "_picture._projection windows a projection by auto_window (1st to 99th percentile), so the "
-                   "sheet's projections and slices of one CT differ in their greys, and its views from each other")
-def test_a_ct_projection_is_shown_through_the_soft_tissue_window_by_default(tmp_path, dicom_ct):
-    from voxrender.display import CT_WINDOWS
+def test_a_projection_is_shown_through_the_volume_window_the_same_for_every_view(tmp_path, dicom_ct):
+    from voxrender.display import auto_window
+    from voxrender.io import read_volume
 
-    result = run("render", dicom_ct, "--threshold", "-500", "--projection", "mip", "--view", "left", "--size", "32",
-                 "--values-out", tmp_path / "v.npy", "-o", tmp_path / "p.png")
-    assert result.exit_code == 0, result.output
-    values = np.load(tmp_path / "v.npy")
-    seen = np.isfinite(values)
-    assert np.array_equal(rgb_of(tmp_path / "p.png")[seen][:, 0], CT_WINDOWS["soft-tissue"].to_uint8(values[seen]))
+    window = auto_window(read_volume(dicom_ct).values)
+    for view in ("left", "anterior"):
+        result = run("render", dicom_ct, "--threshold", "-500", "--projection", "mip", "--view", view, "--size", "32",
+                     "--values-out", tmp_path / f"{view}.npy", "-o", tmp_path / f"{view}.png")
+        assert result.exit_code == 0, result.output
+        values = np.load(tmp_path / f"{view}.npy")
+        seen = np.isfinite(values)
+        assert np.array_equal(rgb_of(tmp_path / f"{view}.png")[seen][:, 0], window.to_uint8(values[seen]))
 
 
-@pytest.mark.xfail(strict=True, reason="bug: output_kinds' labels-out needs the label image (Picture.labels), which a "
-                   "projection has not, though it has its label_rows; refused saying 'the object has no labels'")
 def test_labels_out_of_a_projection_lists_its_labels(tmp_path, ct, seg):
     import json
 
@@ -349,8 +346,6 @@ def test_labels_out_of_a_projection_lists_its_labels(tmp_path, ct, seg):
     assert [row["label"] for row in json.loads((tmp_path / "l.json").read_text())["labels"]] == [1, 2]
 
 
-@pytest.mark.xfail(strict=True, reason="bug: render --projection takes --legend and draws none; it should draw "
-                   "the legend (as the surface does) or refuse it")
 def test_a_legend_on_a_projection_is_drawn_or_refused(tmp_path, ct, seg):
     made = {}
     for name, legend in (("plain", []), ("legend", ["--legend"])):
@@ -363,8 +358,6 @@ def test_a_legend_on_a_projection_is_drawn_or_refused(tmp_path, ct, seg):
         assert not np.array_equal(rgb_of(tmp_path / "plain.png"), rgb_of(tmp_path / "legend.png"))
 
 
-@pytest.mark.xfail(strict=True, reason="bug: render takes --window without --projection and draws the surface as "
-                   "if it were not given (RenderOptions refuses a slab without a projection, not a window)")
 def test_a_window_without_a_projection_is_refused(tmp_path, ct):
     out = tmp_path / "out"
     out.mkdir()

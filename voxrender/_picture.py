@@ -70,8 +70,8 @@ class RenderOptions:
         (:func:`voxrender.project.project`); the picture then needs the grey values (a
         :class:`~voxrender.study.Study`).
     window : DisplayWindow, optional
-        The grey values' window of a projection (default: its 1st to 99th percentile,
-        :func:`~voxrender.display.auto_window`).
+        The grey values' window of a projection (default: the volume's 1st to 99th percentile,
+        :meth:`~voxrender.study.Study.window`, the same for every view).
     slab : float, optional
         Project only a slab this many mm thick around the volume centre, or around the cut plane when there is one.
     """
@@ -261,17 +261,18 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
     if options.legend and table is not None:
         from .marks import draw_legend
 
-        def caption(entry):           # "3 liver"; an unnamed label is already "label 3"
-            named = entry["name"] != f"label {entry['label']}"
-            return f"{entry['label']} {entry['name']}" if named else entry["name"]
-
-        result.rgb = draw_legend(rgb, [(caption(v), v["colour"]) for v in result.visible_labels()])
+        result.rgb = draw_legend(rgb, [(_caption(v), v["colour"]) for v in result.visible_labels()])
     return result
+
+
+def _caption(entry):
+    """A label's line in a legend: "3 liver"; an unnamed label is already "label 3"."""
+    named = entry["name"] != f"label {entry['label']}"
+    return f"{entry['label']} {entry['name']}" if named else entry["name"]
 
 
 def _projection(segments, view, options, study, progress):
     """The picture of a projection of the study's grey values, framed as the surface picture of ``segments``."""
-    from .display import auto_window
     from .project import depth_range, project
 
     if study is None:
@@ -300,7 +301,7 @@ def _projection(segments, view, options, study, progress):
     if not seen.any():
         raise InputError("no ray of the projection meets a voxel within the clip limits and slab; widen them",
                          parameter="slab" if slab else "projection")
-    window = options.window or auto_window(values[seen])
+    window = options.window or study.window()
     grey = window.to_uint8(values)
     rgb = np.where(seen[..., None], grey[..., None], np.asarray(options.background, np.uint8)).astype(np.uint8)
     if options.orientation_marks:
@@ -318,6 +319,10 @@ def _projection(segments, view, options, study, progress):
         table, voxels = label_table(segments, options.colours), segments.label_voxels()
         rows = label_list({k: v for k, v in table.items() if voxels.get(k)}, voxels, segments.spacing,
                           ml=segments.meta.get("label_ml"))
+        if options.legend:
+            from .marks import draw_legend
+
+            rgb = draw_legend(rgb, [(_caption(row), row["colour"]) for row in rows])
     return Picture(rgb, image, {**seconds, "shade": time.perf_counter() - started}, label_table=table,
                    label_rows=rows, values=values, projection=options.projection)
 

@@ -22,7 +22,7 @@ from ._picture import PROJECTIONS, Outputs, RenderOptions, about, label_table, p
 from ._render import DEFAULT_METHOD, METHODS, Clip
 from ._render.raycast import CONNECTIVITIES
 from .errors import InputError
-from .output_kinds import LABELS, OUTPUTS
+from .output_kinds import LABEL_ROWS, LABELS, OUTPUTS
 from .pipeline import Encoded, PrepOptions, ReadOptions, is_segments_file, load_segments
 from .shade import HEADLIGHT, SHADINGS
 from .sheet import render_sheet, sheet
@@ -277,7 +277,7 @@ def _render_options_decorator(command):
 _window_option = click.option(
     "--window", metavar="LEVEL/WIDTH|NAME",
     help="Grey values' window of slices and projections: e.g. 40/400, or brain, soft-tissue, bone, lung (default: "
-         "soft-tissue for CT, else the 1st to 99th percentile).")
+         "slices of a CT soft-tissue; else the volume's 1st to 99th percentile).")
 
 
 def _slice_options_decorator(command):
@@ -376,6 +376,9 @@ def render_command(input_path, output_path, **options):
     _check_vxs_options(input_path, options)
     angles = _view_from(options)
     render_options = _render_options(options)
+    if render_options.window is not None and not render_options.projection:
+        raise InputError("a window shows grey values, and a surface picture draws none; give a projection too (mip, "
+                         "minip or mean), or drop it", parameter="window")
     outputs = Outputs(output_path, **_output_paths(options))
     outputs.check(render_options)
     for path in outputs.wanted().values():
@@ -391,7 +394,7 @@ def render_command(input_path, output_path, **options):
         loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
     _check_label_options(loaded.segments, {"colours": options["colours"], "legend": options["legend"],
                                            **{name: path for name, path in outputs.wanted().items()
-                                              if OUTPUTS[name].needs is LABELS}})
+                                              if OUTPUTS[name].needs in (LABELS, LABEL_ROWS)}})
     result = picture(loaded.segments, render_options.view(*angles), render_options, progress,
                      loaded.tree_for(render_options.method), study=study)
     result.seconds = {**loaded.seconds, **result.seconds}

@@ -47,6 +47,7 @@ DEPTH = Need("depth", "a projection has no depth, its pixels hold grey values; d
 VALUES = Need("values", "only a projection has grey values to write; choose a projection (mip, minip or mean)",
               "projection", lambda options: bool(options.projection))
 LABELS = Need("labels", "the object has no labels to write; render the labels of a label map")
+LABEL_ROWS = Need("label_rows", "the object has no labels to write; render the labels of a label map")
 
 
 @dataclass(frozen=True)
@@ -116,7 +117,7 @@ OUTPUTS = {
         ".json", "Save the object's labels: names, colours, voxels, volumes in mL and the pixels each shows; in a "
         "batch, a pattern.",
         lambda path, result, about: output.write_json(path, {"labels": result.label_rows}), "labels-out",
-        LABELS),
+        LABEL_ROWS),
     "label_png": OutputKind(
         ".png", "Save the label image (16-bit, one label per pixel, 0 background); in a batch, a pattern.",
         lambda path, result, about: output.write_png(path, result.labels), "label-png", LABELS),

@@ -134,9 +134,10 @@ def slice_pictures(study, options=None, colours=None):
         return caption, rgb
 
     if not isinstance(options.at, str):
+        indices = {plane: slice_index(volume, plane, options.at) for plane in PLANES}   # the point lies inside
         row = []
         for plane in options.planes:
-            index = slice_index(volume, plane, options.at)
+            index = indices[plane]
             count = volume.shape[normal_axis[plane]]
             row.append(draw(plane, index, f"{plane} {index + 1} of {count}"))
         return [row]

@@ -80,7 +80,8 @@ def slice_index(volume, plane, at=None):
         The plane (see :data:`PLANES`).
     at : SlicePoint, optional
         The point the slice goes through: in mm, through the inverse of :func:`voxrender.io.patient_affine`; in
-        voxels, as it is. ``None``: the middle slice (``n // 2`` of ``n``).
+        voxels of the input, as it is (a cropped volume's ``meta["crop_corner"]`` is where its first voxel lay).
+        ``None``: the middle slice (``n // 2`` of ``n``).
 
     Returns
     -------
@@ -112,8 +113,9 @@ def slice_index(volume, plane, at=None):
 
         affine = patient_affine(volume)
         voxel = np.linalg.solve(affine[:3, :3], point - affine[:3, 3])
-    else:
-        voxel = point
+    else:                   # voxels of the input: of a cropped volume, from the crop's corner (voxrender.study.cropped)
+        corner = np.asarray(volume.meta.get("crop_corner", (0, 0, 0)), float)
+        voxel = point - corner
     position = float(voxel[normal])
     if not -0.5 <= position <= count - 0.5:           # a voxel is the closed unit cube about its grid point
         if at.unit == "mm":
@@ -122,7 +124,7 @@ def slice_index(volume, plane, at=None):
             low, high = sorted(float(end[normal]) for end in ends)
             extent = f"{_AXIS_NAMES[normal]} from {low:g} to {high:g} mm"
         else:
-            extent = f"{_AXIS_NAMES[normal]} from 0 to {count - 1}"
+            extent = f"{_AXIS_NAMES[normal]} from {corner[normal]:g} to {corner[normal] + count - 1:g}"
         raise InputError(f"{at.x:g}, {at.y:g}, {at.z:g} ({at.unit}) lies outside the volume for the {plane} slice: "
                          f"its slices run along {extent}; give a point within them", parameter="at")
     return min(int(math.floor(position + 0.5)), count - 1)

@@ -67,6 +67,17 @@ class Study:
             return (1.0, 1.0, 1.0)
         return tuple(self.voxel / s for s in self.volume.spacing)
 
+    def window(self):
+        """The window a projection of the study is shown through when none is given: its grey values' 1st to 99th
+        percentile (:func:`voxrender.display.auto_window`), the same for every view of it (a turntable does not
+        flicker), and found once.
+        """
+        if getattr(self, "_window", None) is None:
+            from .display import auto_window
+
+            self._window = auto_window(self.volume.values)
+        return self._window
+
     def label_table(self, given=None):
         """``{label: (name, (r, g, b))}`` of the labels the study holds: from ``given`` (a colour table), the file's
         own names and colours, the anatomy table and the palette (:func:`voxrender.colours.label_colours`).
@@ -95,7 +106,7 @@ class Study:
             "has_grey": self.has_grey})
 
 
-_KEPT_META = ("source", "format", "modality", "units", "series", "orientation", "padding", "overlaps")
+_KEPT_META = ("source", "format", "modality", "units", "series", "orientation", "padding", "crop_corner")
 
 
 def saved_files(stem):
@@ -122,14 +133,14 @@ def cropped(volume, region):
     >>> from voxrender.io import Volume
     >>> part = cropped(Volume(np.zeros((4, 4, 4)), (2.0, 1.0, 1.0), {"origin": [0.0, 0.0, 0.0]}),
     ...                (slice(1, 3), slice(None), slice(2, 4)))
-    >>> part.shape, part.meta["origin"]
-    ((2, 4, 2), [4.0, 0.0, 1.0])
+    >>> part.shape, part.meta["origin"], part.meta["crop_corner"]
+    ((2, 4, 2), [4.0, 0.0, 1.0], [2, 0, 1])
     """
     if region is None:
         return volume
     values = prep.crop(volume.values, region)
     corner = np.array([s.indices(n)[0] for s, n in zip(region[::-1], volume.shape[::-1], strict=True)], float)
-    meta = dict(volume.meta)
+    meta = {**volume.meta, "crop_corner": [int(v) for v in corner]}      # a point in input voxels lies there
     if "origin" in meta:
         meta["origin"] = [float(v) for v in (io.patient_affine(volume) @ np.append(corner, 1.0))[:3]]
     return replace(volume, values=values, meta=meta)
