@@ -62,12 +62,28 @@ def project(values, view, mode="mip", *, shape=None, step=(1.0, 1.0, 1.0), clip=
 
     Notes
     -----
-    All rays are parallel: in input index space they share one direction ``d``.  The rays are followed through
-    the layers of voxels across the axis ``d`` runs most along (one NumPy pass per layer, for all rays
-    together): within a layer a ray moves at most one voxel along each of the other two axes, so it passes
-    through at most three voxels, the one where it enters the layer, the one where it leaves it, and, when it
-    crosses a face along both other axes, the one between the two crossings.  The three lengths weight the
-    mean.  Views along an axis (the presets) take one reduction along that axis instead.
+    What a ray counts (cube semantics, as the surface methods see voxels): an input voxel is the closed box of
+    side 1 (input index units) centred on its integer index; the ray takes the values of the voxels whose boxes
+    it passes through for a positive length, counting only the parts of it inside the volume, the clip limits and
+    the slab.  The maximum and minimum are those of these values; the mean weights each by the length of the ray
+    within its box.  That is the limit of sampling the ray ever more densely with the nearest voxel
+    (``round(q)``) at each sample, the mean of uniform samples included.  A ray running exactly along a face
+    between voxels (a tie of that rounding) takes the voxels on one side of it.
+
+    How: the voxels a ray passes through are its 6-connected discrete line [1]_.  All rays are parallel: in input
+    index space they share one direction ``d``.  They are followed through the layers of voxels across the axis
+    ``d`` runs most along, one face between layers at a time and all rays at once (NumPy passes over them, in
+    runs of faces on two threads): within a layer a ray moves at most one voxel along each of the other two
+    axes, so it passes through at most three voxels, the one where it enters the layer, the one where it leaves
+    it and, when it crosses a face along both other axes, the one between the two crossings (see
+    :func:`_fold_whole_layers`).  A ray's first and last layers, which it may enter or leave through a limit, are
+    cut at every face one by one.  Views along an axis (the presets) take one reduction of the kept box along
+    that axis instead.
+
+    References
+    ----------
+    .. [1] D. Cohen-Or, A. Kaufman, "3D line voxelization and connectivity control", IEEE Computer Graphics and
+       Applications 17(6), 1997: the 6-connected line, which holds every voxel a line passes through.
 
     Examples
     --------
