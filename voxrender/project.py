@@ -493,12 +493,15 @@ def _fold_whole_layers(values, rays, layers, mode, result, faces, progress):
                 fold(result[chosen], pair.ravel().take(cells, mode="clip"), out=result[chosen])
             both = middle = None
             if previous[n] is not None:
+                # the voxel index along b changes across the layer when the carries differ, or K grew and the
+                # carry went
                 moves_b = np.not_equal(previous[n][1], carry_b) if steps_b == before[0] else \
                     np.equal(previous[n][1], carry_b)
                 moves_c = np.not_equal(previous[n][2], carry_c) if steps_c == before[1] else \
                     np.equal(previous[n][2], carry_c)
-                both = np.flatnonzero(moves_b & moves_c & crossed)
-                if both.size:
+                # (a ray in a plane of the voxel grid crosses the faces of one minor axis alone)
+                both = np.flatnonzero(moves_b & moves_c & crossed) if rb and rc else ()
+                if len(both):
                     edge = (before[0] + (rb > 0)) * rc - (before[1] + (rc > 0)) * rb
                     middle = _middle(previous[n][:3], both, side[chosen], edge, rb, rc, row)
                     if not mean:
