@@ -40,6 +40,7 @@ def test_markdown_report(tmp_path):
                "read": {"DICOM folder": {"seconds": 0.5, "megabytes": 123.0}, ".nii.gz": {"seconds": 0.25,
                                                                                         "megabytes": 17.0}},
                "scaling": bench.bench_scaling(repeat=1, sizes=(8, 10)),
+               "projection": bench.bench_projection(np.arange(120, dtype=np.int16).reshape(4, 5, 6), 1, size=8),
                "raycast": bench.bench_raycast(1, {"shell": (segments.encode(bench.thin_shell(24, 9.0)),
                                                              View(30, 10, 0, (32, 32), 1.2))})}
     text = bench.markdown(results)
@@ -47,6 +48,7 @@ def test_markdown_report(tmp_path):
     assert "| 1 | 2 |" in text and "fitted exponent" in text and "peers" in text and "| shell | adaptive |" in text
     assert "| gradient | 0.001 | 0.100 | 0.020 | 0.002 | 0.123 | 0.246 | 0.50 |" in text
     assert "| gradient, fresh process |" in text and "In a fresh process" in text
+    assert "Maximum intensity projection of the 6 x 5 x 4 volume" in text and "| anterior |" in text
     rows = results["raycast"]["shell"]["rows"]
     assert rows["adaptive"]["leaks"] == 0 and rows["26"]["leaks"] > 0
 
