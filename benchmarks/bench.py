@@ -10,7 +10,7 @@ It measures, on ``vhf_head`` at 300 HU (512 x 512 pictures at scale 1):
   (the skin: the whole head is the object) at the paper's orientations;
 * VTK's CPU ray caster (``vtkFixedPointVolumeRayCastMapper``) on the same volume and views,
   when ``vtk`` is installed (``pip install -e '.[peers]'``);
-* the maximum intensity projection (``voxrender.project``) of the grey volume at the anterior view and
+* the maximum intensity projection (``voxrender._project``) of the grey volume at the anterior view and
   two oblique ones, beside VTK's (the same caster, maximum-intensity blend), with their ratio;
 * the whole command, DICOM folder to PNG, in a fresh process;
 * the paper's section 6 analysis: render time against N for a sphere and for a
@@ -234,7 +234,7 @@ PROJECTION_VIEWS = {"anterior": (90.0, 0.0, 0.0), "oblique (30, 10)": (30.0, 10.
 def bench_projection(values, repeat, peer=None, size=512, scale=1.0, views=PROJECTION_VIEWS):
     """Median seconds of ``project`` (MIP) at each view, beside VTK's MIP of the same view (``peer``, a
     :class:`VtkMipPeer`), and their ratio; same run, same volume."""
-    from voxrender.project import project
+    from voxrender._project import project
 
     rows = []
     for name, angles in views.items():
@@ -253,7 +253,7 @@ def _projection_table(result):
     vtk = any("vtk_s" in row for row in result["rows"])
     grid = " x ".join(map(str, result["grid_xyz"]))
     lines = [f"Maximum intensity projection of the {grid} volume, {result['size']} x {result['size']} at scale "
-             f"{result['scale']:g} (`voxrender.project.project`, exact under cube semantics; median seconds" +
+             f"{result['scale']:g} (`voxrender.project`, exact under cube semantics; median seconds" +
              ("; VTK's MIP of the same view: vtkFixedPointVolumeRayCastMapper, maximum-intensity blend, nearest "
               "interpolation, sample distance 1 voxel, its own threads):" if vtk else "):"), "",
              "| view | voxrender s |" + (" vtk s | voxrender/vtk |" if vtk else ""),

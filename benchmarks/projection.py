@@ -42,8 +42,8 @@ def main(data, repeat, pictures):
 
 def _write_pictures(values, peer, folder):
     from voxrender import output
+    from voxrender._project import project
     from voxrender.display import DisplayWindow
-    from voxrender.project import project
     from voxrender.view import View
 
     folder.mkdir(parents=True, exist_ok=True)

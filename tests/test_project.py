@@ -4,9 +4,9 @@ nearest-neighbour look-ups."""
 import numpy as np
 import pytest
 
+from voxrender._project import PROJECTIONS, depth_range, project
 from voxrender._render import Clip
 from voxrender.errors import InputError
-from voxrender.project import PROJECTIONS, depth_range, project
 from voxrender.view import View
 
 SAMPLES_PER_VOXEL = 256
@@ -175,7 +175,7 @@ def test_bad_input(volume, call, parameter):
 def test_long_volumes_along_any_axis(monkeypatch):
     """Rays along z run through 70 layers, in two runs of faces on two threads, the same as in one; rays along x
     read their layers in blocks (x is next to x in memory)."""
-    import voxrender.project as module
+    import voxrender._project as module
 
     values = np.random.default_rng(3).integers(-500, 500, size=(70, 6, 5)).astype(np.int16)
     view = View(8, -6, 30, size=(10, 10), scale=1.0)

@@ -51,7 +51,7 @@ _PUBLIC = {
     "InputError": ".errors",
     "load_study": ".study",
     "Study": ".study",
-    "project": ".project",
+    "project": "._project",
     "DisplayWindow": ".display",
     "SliceOptions": ".qc",
     "slice_pictures": ".qc",

@@ -23,7 +23,7 @@ from .output_kinds import OUTPUTS, fields_per_output
 from .shade import HEADLIGHT, SHADINGS, light_direction
 from .view import PRESETS, View
 
-PROJECTIONS = ("mip", "minip", "mean")      # voxrender.project's; here so that the options check without importing it
+PROJECTIONS = ("mip", "minip", "mean")      # voxrender._project's; here so that the options check without importing it
 
 # The views that see a slab thin along an axis face-on.
 FACE_ON = {"x": ("left", "right"), "y": ("anterior", "posterior"), "z": ("inferior", "superior")}
@@ -67,7 +67,7 @@ class RenderOptions:
         Write the patient directions (L/R, A/P, S/I) at the picture's edges.
     projection : {"mip", "minip", "mean"}, optional
         Draw the grey values' maximum (minimum, mean) along each ray instead of the surface
-        (:func:`voxrender.project.project`); the picture then needs the grey values (a
+        (:func:`voxrender._project.project`); the picture then needs the grey values (a
         :class:`~voxrender.study.Study`).
     window : DisplayWindow, optional
         The grey values' window of a projection (default: the volume's 1st to 99th percentile,
@@ -273,7 +273,7 @@ def _caption(entry):
 
 def _projection(segments, view, options, study, progress):
     """The picture of a projection of the study's grey values, framed as the surface picture of ``segments``."""
-    from .project import depth_range, project
+    from ._project import depth_range, project
 
     if study is None:
         raise InputError("a projection draws grey values, which an encoded object does not keep; give the slice "

@@ -24,7 +24,7 @@ from .errors import InputError
 class DisplayWindow:
     """A display window: ``level`` (its centre) and ``width``, in stored units (HU for CT).
 
-    >>> DisplayWindow(40, 80).to_uint8(np.array([-100.0, 0.0, 40.0, 80.0, np.nan])).tolist()
+    >>> DisplayWindow(40, 80).to_uint8(np.array([-100.0, 20.0, 40.0, 80.0, np.nan])).tolist()
     [0, 64, 128, 255, 0]
     """
 

@@ -61,7 +61,7 @@ class Study:
     @property
     def step(self):
         """``(sx, sy, sz)``: an object-grid point ``p`` lies at input index ``p * step`` (see
-        :func:`voxrender.project.project`).
+        :func:`voxrender._project.project`).
         """
         if not self.resampled:
             return (1.0, 1.0, 1.0)
