@@ -124,12 +124,13 @@ def slice_pictures(study, options=None, colours=None):
     table = study.label_table(colours) if labels is not None else None
     window = options.window or default_window(volume)
     grey = volume.values if study.has_grey else np.broadcast_to(np.uint8(0), volume.shape)   # a label map alone
+    opacity = options.opacity if study.has_grey else 1.0         # nothing to see through the labels: full colours
     normal_axis = {"axial": 0, "coronal": 1, "sagittal": 2}          # the [z, y, x] axis each plane is across
 
     def draw(plane, index, caption):
         image, pixel_mm = plane_image(grey, volume.spacing, plane, index)
         label_slice = None if labels is None else plane_image(labels, volume.spacing, plane, index)[0]
-        rgb = slice_picture(image, pixel_mm, window, label_slice, table, overlay, options.opacity,
+        rgb = slice_picture(image, pixel_mm, window, label_slice, table, overlay, opacity,
                             options.size, edge_letters(View.preset(PLANES[plane])), True, options.legend)
         return caption, rgb
 
