@@ -27,6 +27,10 @@ PROJECTIONS = ("mip", "minip", "mean")
 _ON_FACE = 1e-9
 _RAYS_PER_CHUNK = 1 << 16   # rays gathered at once in a layer: their temporaries stay in the cache
 _THREADS = min(2, os.cpu_count() or 1)
+_SKIP = True              # skip the blocks of faces that cannot change a ray's maximum (minimum); False: every face
+_BLOCK_FACES = 16         # faces per block
+_TILE = 4                 # the blocks' bounds are per tile of _TILE x _TILE voxels across the main axis
+_PAIRS_PER_PIXEL = 24     # a block's rays are read straight from the volume when fewer than a slice's pixels / this
 
 
 def project(values, view, mode="mip", *, shape=None, step=(1.0, 1.0, 1.0), clip=None, slab=None, progress=None):
@@ -211,8 +215,9 @@ class _Rays:
         self.t0, self.t1 = t0[self.pixels], t1[self.pixels]
 
     def reordered(self, order):
-        """The same rays in another ``order``."""
+        """The same rays in another ``order`` (or some of them)."""
         rays = copy.copy(self)
+        rays.count = len(order)
         rays.pixels, rays.t0, rays.t1 = self.pixels[order], self.t0[order], self.t1[order]
         rays.q0 = [q[order] for q in self.q0]
         return rays
@@ -359,6 +364,13 @@ def _project_through_layers(values, rays, mode, progress):
     # ... and the layers between, which it passes through whole, all together: the faces in as many runs as
     # there are threads (NumPy lets go of Python's lock in its passes), each into its own copy of the result
     faces = range(int(layers.first.min()) + 1, int(layers.last.max()) + 1)
+    if mode != "mean" and _SKIP and len(faces) > 2 * _BLOCK_FACES:
+        _fold_skipping(values, rays, layers, mode, result, faces, progress)
+        out = np.empty(rays.count, np.float32)
+        out[order] = result
+        if floats:
+            out[order[result == _ignored(mode, values.dtype)]] = np.nan
+        return out
     runs = max(1, min(_THREADS, len(faces) // 32))
     bounds = np.linspace(faces.start, faces.stop, runs + 1).astype(int)
     parts = [range(max(low - 1, faces.start), high) for low, high in zip(bounds[:-1], bounds[1:], strict=True)]
@@ -408,7 +420,7 @@ def _fold_in(result, chosen, cells, weights, layers, mode, dtype):
             result[chosen] = (np.maximum if mode == "mip" else np.minimum)(result[chosen], found)
 
 
-def _fold_whole_layers(values, rays, layers, mode, result, faces, progress):
+def _fold_whole_layers(values, rays, layers, mode, result, faces, progress, buffers=None):
     """Fold into ``result`` the voxels of the layers each ray passes through whole (between its first and last)
     and that lie between ``faces`` (a range of faces ``q_a = j - 1/2``).
 
@@ -422,6 +434,9 @@ def _fold_whole_layers(values, rays, layers, mode, result, faces, progress):
     which, and only the rays that do are looked up again.  For the mean, the fractions of the layer at which a
     ray crosses b's and c's faces (``lambda_1 <= lambda_2``, 1 for none) weight the voxels where it enters, the
     one between and the one where it leaves.
+
+    ``buffers``, a dictionary kept by the caller, keeps the slice buffers for its next call (the maximum and
+    minimum only).
     """
     a, b, c = layers.a, layers.b, layers.c
     d = rays.direction
@@ -455,12 +470,20 @@ def _fold_whole_layers(values, rays, layers, mode, result, faces, progress):
     if progress is not None:
         faces = progress(faces, len(faces), mode)
     kind = np.float64 if mean else values.dtype
-    single, here, pair = (np.full((nc + 2, row), neutral, kind) for _ in range(3))
+    if buffers is not None and not mean:
+        if not buffers:
+            buffers["pair"] = [np.full((nc + 2, row), neutral, kind) for _ in range(3)]   # the rims stay neutral
+            buffers["slices"] = _Slices(values, axis, _BLOCK_FACES + 2)
+        single, here, pair = buffers["pair"]
+        slices = buffers["slices"]
+        slices.start = None                 # a block of slices read from the first this call asks for
+    else:
+        single, here, pair = (np.full((nc + 2, row), neutral, kind) for _ in range(3))
+        slices = _Slices(values, axis)
     # for the mean of a float volume the length counts only finite voxels: 1 where finite, looked up alike
     counted = [np.zeros((nc + 2, row)) for _ in range(2)] if mean and values.dtype.kind == "f" else None
     previous = [None] * len(chunks)
     before = None
-    slices = _Slices(values, axis)
     for j in faces:
         # single: layer j - 1, here: layer j, each slice read once
         single, here = here, single
@@ -533,6 +556,267 @@ def _fold_whole_layers(values, rays, layers, mode, result, faces, progress):
         before = (steps_b, steps_c, phase_b, phase_c)
 
 
+def _fold_skipping(values, rays, layers, mode, result, faces, progress):
+    """Fold the layers the rays pass through whole into ``result`` (the maximum or minimum), skipping, for each
+    ray, the blocks of faces that cannot change its answer.
+
+    The faces are cut into blocks of ``_BLOCK_FACES``; :func:`_block_bounds` gives every ray an upper bound (for
+    the minimum, a lower bound) of the voxels it can meet in each block.  Each ray first takes its exact fold over
+    the block of the highest bound (a value it does meet, so a bound of its answer from the other side); then a
+    block is followed, exactly, only for the rays whose bound there beats what they hold.  The result is the one
+    every face gives, as a block skipped holds nothing above (below) what the ray already has.
+    """
+    beats = np.greater if mode == "mip" else np.less
+    neutral = _ignored(mode, values.dtype)
+    blocks = [range(max(j - 1, faces.start), min(j + _BLOCK_FACES, faces.stop))   # the face before: its layer's
+              for j in range(faces.start, faces.stop, _BLOCK_FACES)]               # middle voxels
+    bounds = _block_bounds(values, rays, layers, mode, blocks)
+    paths = _Paths(values, rays, layers)
+    buffers = [{} for _ in range(_THREADS)]          # each thread's slice buffers, kept from block to block
+    best, highest = np.zeros(rays.count, np.intp), bounds[0].copy()
+    for k in range(1, len(blocks)):
+        higher = beats(bounds[k], highest)
+        best[higher] = k
+        np.copyto(highest, bounds[k], where=higher)
+    runs = max(1, min(_THREADS, len(blocks) // 2))
+    parts = np.array_split(np.arange(len(blocks)), runs)
+
+    def first(part, buffers):
+        for k in part:
+            mine = best == k
+            _fold_rays(values, rays, layers, mode, result, blocks[k],
+                       np.flatnonzero(mine & beats(bounds[k], result)), paths, buffers)
+            bounds[k][mine] = neutral                                               # done
+
+    def then(part, out, progress, buffers):
+        if progress is not None:
+            part = progress(part, len(part), mode)
+        for k in part:
+            _fold_rays(values, rays, layers, mode, out, blocks[k], np.flatnonzero(beats(bounds[k], out)), paths,
+                       buffers)
+
+    if runs == 1:
+        first(parts[0], buffers[0])
+        then(parts[0], result, progress, buffers[0])
+        return
+    # in as many runs of blocks as there are threads: first into the result (each ray in one block only), then
+    # each into its own copy of it
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(runs) as pool:
+        list(pool.map(first, parts, buffers))
+        results = [result] + [result.copy() for _ in parts[1:]]
+        list(pool.map(then, parts, results, [progress] + [None] * (runs - 1), buffers))
+    for other in results[1:]:
+        (np.maximum if mode == "mip" else np.minimum)(result, other, out=result)
+
+
+def _fold_rays(values, rays, layers, mode, result, faces, chosen, paths, buffers):
+    """:func:`_fold_whole_layers` for the rays ``chosen`` (indices, increasing) alone: a few rays straight from the
+    volume (:func:`_fold_pairs`), many through the slices.
+    """
+    if not chosen.size:
+        return
+    if chosen.size * _PAIRS_PER_PIXEL < paths.nb * paths.nc:
+        _fold_pairs(paths, mode, result, faces, chosen)
+        return
+    some = copy.copy(layers)
+    some.first, some.last = layers.first[chosen], layers.last[chosen]
+    part = result[chosen]
+    _fold_whole_layers(values, rays.reordered(chosen), some, mode, part, faces, None, buffers)
+    result[chosen] = part
+
+
+class _Paths:
+    """What :func:`_fold_pairs` needs of every ray, worked out once, as :func:`_fold_whole_layers` works it out:
+    where it crosses the faces along the main axis (the whole and fractional parts of its minor indices + 1/2 at
+    face 0, ``A``, and the steps ``r`` per face) and the side of the edges it passes on.
+    """
+
+    def __init__(self, values, rays, layers):
+        a, b, c = layers.a, layers.b, layers.c
+        d = rays.direction
+        self.rb, self.rc = d[b] / d[a], d[c] / d[a]
+        start_b = rays.q0[b] + 0.5 - (rays.q0[a] + 0.5) * self.rb
+        start_c = rays.q0[c] + 0.5 - (rays.q0[a] + 0.5) * self.rc
+        whole_b, whole_c = np.floor(start_b), np.floor(start_c)
+        part_b, part_c = start_b - whole_b, start_c - whole_c
+        self.whole_b, self.whole_c = whole_b.astype(np.intp), whole_c.astype(np.intp)
+        self.part_b32, self.part_c32 = part_b.astype(np.float32), part_c.astype(np.float32)
+        self.side = part_b * self.rc - part_c * self.rb
+        self.first, self.last = layers.first, layers.last
+        self.flat, self.origin = layers.flat, layers.origin
+        self.stride_a, self.stride_b, self.stride_c = (layers.strides[k] for k in (a, b, c))
+        self.nb, self.nc = layers.sizes[b], layers.sizes[c]
+        self.floats = values.dtype.kind == "f"
+
+
+def _fold_pairs(paths, mode, result, faces, chosen, chunk=4096):
+    """What :func:`_fold_whole_layers` folds into ``result`` at ``faces`` for the rays ``chosen``, the same voxels
+    (the same arithmetic), read straight from the volume for every (ray, face) pair at once: no slice is copied,
+    so it pays for the rays alone.
+    """
+    fold = np.maximum if mode == "mip" else np.minimum
+    neutral = _ignored(mode, paths.flat.dtype)
+    rb, rc = paths.rb, paths.rc
+    js = np.arange(faces.start, faces.stop)
+    # per face, as _fold_whole_layers works them out (the carries compare float32 parts with float64 thresholds)
+    split = [(divmod(j * rb, 1.0), divmod(j * rc, 1.0)) for j in faces]
+    steps_b = np.array([s[0][0] for s in split])
+    steps_c = np.array([s[1][0] for s in split])
+    below_b = np.array([1 - s[0][1] for s in split])
+    below_c = np.array([1 - s[1][1] for s in split])
+    edge = (steps_b[:-1] + (rb > 0)) * rc - (steps_c[:-1] + (rc > 0)) * rb     # the edge before each face
+    same_b, same_c = steps_b[1:] == steps_b[:-1], steps_c[1:] == steps_c[:-1]
+    along_b, along_c = (1 if rb > 0 else -1), (1 if rc > 0 else -1)
+    layer_before = (js - 1) * paths.stride_a
+    for start in range(0, chosen.size, chunk):
+        rays = chosen[start:start + chunk]
+        carry_b = paths.part_b32[rays, None] >= below_b
+        carry_c = paths.part_c32[rays, None] >= below_c
+        ib = paths.whole_b[rays, None] + steps_b.astype(np.intp) + carry_b
+        ic = paths.whole_c[rays, None] + steps_c.astype(np.intp) + carry_c
+        crossed = (paths.first[rays, None] < js) & (js <= paths.last[rays, None])
+        found = _gather_pairs(paths, ib, ic, crossed, layer_before, neutral, fold)
+        if rb and rc and len(js) > 1:
+            # the voxel between two crossings, in the layer between faces j - 1 and j, as _middle finds it
+            moves_b = np.where(same_b, carry_b[:, 1:] != carry_b[:, :-1], carry_b[:, 1:] == carry_b[:, :-1])
+            moves_c = np.where(same_c, carry_c[:, 1:] != carry_c[:, :-1], carry_c[:, 1:] == carry_c[:, :-1])
+            both = moves_b & moves_c & crossed[:, 1:] & crossed[:, :-1]
+            ray, face = np.nonzero(both)
+            if ray.size:
+                z = edge[face] + carry_b[ray, face] * rc - carry_c[ray, face] * rb - paths.side[rays[ray]]
+                b_first = z < 0 if rb * rc > 0 else z > 0
+                mb = ib[ray, face] + b_first * along_b
+                mc = ic[ray, face] + ~b_first * along_c
+                middle = _gather(paths, mb, mc, layer_before[face + 1], neutral)
+                found[ray, face + 1] = fold(found[ray, face + 1], middle)
+        result[rays] = fold(result[rays], fold.reduce(found, axis=1))
+
+
+def _gather_pairs(paths, ib, ic, crossed, layer_before, neutral, fold):
+    """The fold of the two voxels beside each face (layers j - 1 and j) at minor indices ``ib, ic``; ``neutral``
+    where the face is not ``crossed`` or the indices lie outside the volume (the slice buffers' rim).
+    """
+    inside = crossed & (ib >= 0) & (ib < paths.nb) & (ic >= 0) & (ic < paths.nc)
+    cells = paths.origin + ib * paths.stride_b + ic * paths.stride_c + layer_before
+    cells[~inside] = paths.origin
+    found = fold(_finite_take(paths, cells, neutral), _finite_take(paths, cells + paths.stride_a, neutral))
+    found[~inside] = neutral
+    return found
+
+
+def _gather(paths, ib, ic, layer, neutral):
+    """The voxels at minor indices ``ib, ic`` of ``layer`` (its flat offset); ``neutral`` outside the volume."""
+    inside = (ib >= 0) & (ib < paths.nb) & (ic >= 0) & (ic < paths.nc)
+    cells = np.where(inside, paths.origin + ib * paths.stride_b + ic * paths.stride_c + layer, paths.origin)
+    found = _finite_take(paths, cells, neutral)
+    found[~inside] = neutral
+    return found
+
+
+def _finite_take(paths, cells, neutral):
+    found = paths.flat.take(cells)
+    if paths.floats:
+        found[~np.isfinite(found)] = neutral
+    return found
+
+
+def _block_bounds(values, rays, layers, mode, blocks):
+    """For every block of faces (a range of them) and every ray, a bound of the values of the voxels the ray can
+    meet at those faces in :func:`_fold_whole_layers`: above all of them for the maximum (below, for the minimum),
+    ignoring NaN; the fold's neutral value where the ray crosses none of the block's faces.  ``(len(blocks),
+    rays.count)``, of the values' type.
+
+    The layers beside a block's faces are folded along the main axis, then over tiles of ``_TILE`` x ``_TILE``
+    voxels of the other two axes (the axis next to itself in memory last, on the least data), and each tile takes
+    the tiles a ray's path across the block can reach from it (how far it moves along each minor axis over the
+    block's faces, and a voxel each side for rounding).  A ray looks the bound up at the tile where it starts.
+    """
+    reduce = np.fmax if mode == "mip" else np.fmin
+    neutral = _ignored(mode, values.dtype)
+    a, b, c = layers.a, layers.b, layers.c
+    axis, tile = 2 - a, _TILE
+    strides = [abs(s) for s in values.strides]
+    # the minor axes in the order they are folded: the larger stride first
+    minor = sorted((2 - b, 2 - c), key=lambda k: -strides[k])
+    spans = [slice(block.start - 1, block.stop) for block in blocks]      # face j reads layers j - 1 and j
+    if strides[axis] < min(strides[k] for k in minor):
+        # the main axis is next to itself in memory: the tiles first (each a fold across slices), then blocks
+        small = values
+        for k in minor:
+            small = _fold_tiles(small, k, tile, reduce)
+        folded = [reduce.reduce(_along(small, axis, span), axis=axis) for span in spans]
+    else:
+        folded = []
+        for span in spans:
+            plane = reduce.reduce(_along(values, axis, span), axis=axis)   # (c, b): c's array axis comes first
+            for k in (0, 1) if strides[minor[0]] == strides[2 - c] else (1, 0):
+                plane = _fold_tiles(plane, k, tile, reduce)
+            folded.append(plane)
+    bound = np.stack(folded)                                               # (blocks, c tiles, b tiles)
+    if bound.dtype.kind == "f":
+        bound[np.isnan(bound)] = neutral
+    d = rays.direction
+    faces = max(len(block) for block in blocks) - 1
+    tiles = bound.shape[1:]
+    starts, steps = [], []
+    for k, array_axis in ((c, 1), (b, 2)):
+        r = d[k] / d[a]
+        # the tiles a path can reach from the one where it starts: its excursion over the faces, two voxels before
+        # (rounding, and the carries of _fold_whole_layers) and one after
+        reach = (math.ceil(abs(r) * faces) + 3) // tile + 2
+        window = bound.copy()
+        n = tiles[array_axis - 1]
+        for s in range(1, min(reach, n)):
+            reduce(_along(window, array_axis, slice(0, n - s)), _along(bound, array_axis, slice(s, n)),
+                   out=_along(window, array_axis, slice(0, n - s)))
+        bound = window
+        # index + 1/2 at face j is start + j r; in tiles, less the two voxels, in single precision (a part of a
+        # voxel off at most, within the margin)
+        starts.append(((rays.q0[k] + 0.5 - (rays.q0[a] + 0.5) * r - 2) / tile).astype(np.float32))
+        steps.append(r)
+    out = np.empty((len(blocks), rays.count), bound.dtype)
+    where = np.empty(rays.count, np.float32)
+    cell = np.empty(rays.count, np.int32)
+    for n, block in enumerate(blocks):
+        # the tile of the lowest voxel along each minor axis the path can meet at the block's faces
+        for start, r, size, scale in zip(starts, steps, tiles, (tiles[1], 1), strict=True):
+            np.add(start, (block.start if r >= 0 else block.stop - 1) * r / tile, out=where)
+            np.clip(where, 0, size - 1, out=where)
+            if scale == 1:
+                cell += where.astype(np.int32)
+            else:
+                np.multiply(where.astype(np.int32), scale, out=cell)
+        bound[n].ravel().take(cell, out=out[n])
+    # neutral where the ray crosses none of the block's faces (first < j <= last)
+    ends = np.array([(block.start, block.stop - 1) for block in blocks])
+    low = np.searchsorted(ends[:, 1], layers.first + 1)              # the first block with a face it crosses
+    high = np.searchsorted(ends[:, 0], layers.last, side="right")     # after the last
+    numbers = np.arange(len(blocks))[:, None]
+    out[(numbers < low) | (numbers >= high)] = neutral
+    return out
+
+
+def _along(array, axis, index):
+    """``array[..., index, ...]`` with ``index`` on ``axis``."""
+    at = [slice(None)] * array.ndim
+    at[axis] = index
+    return array[tuple(at)]
+
+
+def _fold_tiles(array, axis, tile, reduce):
+    """``array`` folded by ``reduce`` over runs of ``tile`` along ``axis`` (the last run may be shorter), read in
+    place whatever its strides.
+    """
+    out = _along(array, axis, slice(0, None, tile)).copy()
+    for s in range(1, tile):
+        part = _along(array, axis, slice(s, None, tile))
+        head = _along(out, axis, slice(0, part.shape[axis]))
+        reduce(head, part, out=head)
+    return out
+
+
 def _fraction(part, phase, carry, r, moves):
     """Where along a layer (0 at the face it is entered by, 1 at the other) a ray crosses a face along a minor
     axis: ``part + phase - carry`` is the fractional part of its index + 1/2 at the entry face; 1 where it
@@ -555,25 +839,23 @@ class _Slices:
 
     BLOCK = 16
 
-    def __init__(self, values, axis):
-        self.values, self.axis = values, axis
+    def __init__(self, values, axis, block=BLOCK):
+        self.values, self.axis, self.BLOCK = values, axis, block
         others = [abs(s) for k, s in enumerate(values.strides) if k != axis]
         self.blocks = abs(values.strides[axis]) < min(others)
-        self.start, self.block = None, None
+        self.start, self.block, self.memory = None, None, None
 
     def __getitem__(self, j):
         if not self.blocks:
-            index = [slice(None)] * 3
-            index[self.axis] = j
-            return self.values[tuple(index)]
+            return _along(self.values, self.axis, j)
         if self.start is None or not self.start <= j < self.start + self.BLOCK:
             self.start = j
-            index = [slice(None)] * 3
-            index[self.axis] = slice(j, j + self.BLOCK)
-            self.block = np.ascontiguousarray(self.values[tuple(index)])
-        index = [slice(None)] * 3
-        index[self.axis] = j - self.start
-        return self.block[tuple(index)]
+            part = _along(self.values, self.axis, slice(j, j + self.BLOCK))
+            if self.memory is None:          # one array, filled again for each block (new memory is slow to touch)
+                self.memory = np.empty(_along(self.values, self.axis, slice(0, self.BLOCK)).shape, self.values.dtype)
+            self.block = _along(self.memory, self.axis, slice(0, part.shape[self.axis]))
+            np.copyto(self.block, part)
+        return _along(self.block, self.axis, j - self.start)
 
 
 def _middle(entering, both, side, edge, rb, rc, row):
