@@ -30,8 +30,13 @@ CASES = {
     # the same labels as a DICOM SEG of the real series, written by highdicom, placed by position
     "head-seg": ["render", "{data}/vhf_head", "--labels-from", "{samples}/head-seg.dcm", "--voxel", "2",
                  "--alpha", "90", "--beta", "60", "--clip-x", ":128", "--legend", "--size", "160"],
+    # the QC pictures: its slices with the labels filled and outlined, and an oblique MIP
+    "head-slices": ["slices", "{data}/vhf_head", "--labels-from", "{samples}/head.seg.nrrd", "--overlay", "both",
+                    "--legend", "--size", "128"],
+    "head-mip": ["render", "{data}/vhf_head", "--threshold", "300", "--projection", "mip", "--alpha", "30", "--beta",
+                 "10", "--size", "128"],
 }
-REAL_DATA = {"headsq-bone", "head-labels", "head-seg"}
+REAL_DATA = {"headsq-bone", "head-labels", "head-seg", "head-slices", "head-mip"}
 
 
 def head_labels(samples, data):
@@ -80,7 +85,7 @@ def render_case(name, output, samples, data=DATA):
     args = [a.format(samples=samples, data=data) for a in CASES[name]] + ["-o", str(output)]
     if name != "demo" and not (Path(samples) / "shell").is_dir():
         CliRunner().invoke(main, ["samples", str(samples)])
-    if name == "head-labels":
+    if name in ("head-labels", "head-slices"):
         head_labels(samples, data)
     if name == "head-seg":
         head_seg(samples, data)

@@ -70,8 +70,8 @@ class RenderOptions:
         (:func:`voxrender._project.project`); the picture then needs the grey values (a
         :class:`~voxrender.study.Study`).
     window : DisplayWindow, optional
-        The grey values' window of a projection (default: the volume's 1st to 99th percentile,
-        :meth:`~voxrender.study.Study.window`, the same for every view).
+        The grey values' window of a projection (default: :meth:`~voxrender.study.Study.window`, the same for every
+        view).
     slab : float, optional
         Project only a slab this many mm thick around the volume centre, or around the cut plane when there is one.
     """
@@ -301,7 +301,7 @@ def _projection(segments, view, options, study, progress):
     if not seen.any():
         raise InputError("no ray of the projection meets a voxel within the clip limits and slab; widen them",
                          parameter="slab" if slab else "projection")
-    window = options.window or study.window()
+    window = options.window or study.window(options.projection)
     grey = window.to_uint8(values)
     rgb = np.where(seen[..., None], grey[..., None], np.asarray(options.background, np.uint8)).astype(np.uint8)
     if options.orientation_marks:

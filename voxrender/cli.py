@@ -277,7 +277,8 @@ def _render_options_decorator(command):
 _window_option = click.option(
     "--window", metavar="LEVEL/WIDTH|NAME",
     help="Grey values' window of slices and projections: e.g. 40/400, or brain, soft-tissue, bone, lung (default: "
-         "slices of a CT soft-tissue; else the volume's 1st to 99th percentile).")
+         "slices of a CT soft-tissue; else the 1st to 99th percentile of the values, of a projection along y for "
+         "projections).")
 
 
 def _slice_options_decorator(command):

@@ -67,16 +67,23 @@ class Study:
             return (1.0, 1.0, 1.0)
         return tuple(self.voxel / s for s in self.volume.spacing)
 
-    def window(self):
-        """The window a projection of the study is shown through when none is given: its grey values' 1st to 99th
-        percentile (:func:`voxrender.display.auto_window`), the same for every view of it (a turntable does not
-        flicker), and found once.
+    def window(self, projection="mip"):
+        """The window a ``projection`` of the study is shown through when none is given: the 1st to 99th percentile
+        (:func:`voxrender.display.auto_window`) of the study's projection along y, whatever the view, so that every
+        view of it (a MIP turntable) is shown alike; found once.  The volume's own percentiles would not do: the bone
+        a head's MIP shows is its top one per cent.
         """
-        if getattr(self, "_window", None) is None:
-            from .display import auto_window
+        from .display import auto_window
 
-            self._window = auto_window(self.volume.values)
-        return self._window
+        kept = self.__dict__.setdefault("_windows", {})
+        if projection not in kept:
+            values = self.volume.values
+            if projection == "mean":
+                plane = np.add.reduce(values, axis=1, dtype=np.float64) / values.shape[1]
+            else:               # fmax and fmin pass over NaN voxels, and reduce without a copy of the volume
+                plane = (np.fmin if projection == "minip" else np.fmax).reduce(values, axis=1)
+            kept[projection] = auto_window(plane)
+        return kept[projection]
 
     def label_table(self, given=None):
         """``{label: (name, (r, g, b))}`` of the labels the study holds: from ``given`` (a colour table), the file's
