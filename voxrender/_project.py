@@ -84,10 +84,18 @@ def project(values, view, mode="mip", *, shape=None, step=(1.0, 1.0, 1.0), clip=
     cut at every face one by one.  Views along an axis (the presets) take one reduction of the kept box along
     that axis instead.
 
+    The maximum and minimum skip what cannot change a ray's answer, as maximum intensity ray casters leap over
+    space [2]_: the faces are cut into blocks, each ray gets a bound of the voxels it can meet in each block (from
+    the block's maximum over tiles of voxels, :func:`_block_bounds`), takes its exact value over its most
+    promising block first, and then follows only the blocks whose bound beats what it holds
+    (:func:`_fold_skipping`).  The answer is the one every face gives, bit for bit; the mean follows every face.
+
     References
     ----------
     .. [1] D. Cohen-Or, A. Kaufman, "3D line voxelization and connectivity control", IEEE Computer Graphics and
        Applications 17(6), 1997: the 6-connected line, which holds every voxel a line passes through.
+    .. [2] L. Mroz, H. Hauser, E. Groeller, "Interactive high-quality maximum intensity projection", Computer
+       Graphics Forum 19(3), 2000: voxels that cannot be a ray's maximum are left out of its projection.
 
     Examples
     --------
@@ -354,23 +362,40 @@ def _project_through_layers(values, rays, mode, progress):
         result = (np.zeros(rays.count), np.zeros(rays.count))      # the integral of the values, and the length
     else:
         result = np.full(rays.count, _ignored(mode, values.dtype), values.dtype)
-    # the first and last layer of each ray, which it may enter or leave through the limits, one by one ...
-    ends = ((layers.first, np.arange(rays.count)), (layers.last, np.flatnonzero(layers.last > layers.first)))
-    for end, its_rays in ends:
-        for start in range(0, its_rays.size, _RAYS_PER_CHUNK):
-            chosen = its_rays[start:start + _RAYS_PER_CHUNK]
-            cells, weights = _layer_cells(rays, chosen, end[chosen], layers)
-            _fold_in(result, chosen, cells, weights, layers, mode, values.dtype)
-    # ... and the layers between, which it passes through whole, all together: the faces in as many runs as
-    # there are threads (NumPy lets go of Python's lock in its passes), each into its own copy of the result
+
+    def fold_ends():
+        # the first and last layer of each ray, which it may enter or leave through the limits, one by one ...
+        ends = ((layers.first, np.arange(rays.count)), (layers.last, np.flatnonzero(layers.last > layers.first)))
+        for end, its_rays in ends:
+            for start in range(0, its_rays.size, _RAYS_PER_CHUNK):
+                chosen = its_rays[start:start + _RAYS_PER_CHUNK]
+                cells, weights = _layer_cells(rays, chosen, end[chosen], layers)
+                _fold_in(result, chosen, cells, weights, layers, mode, values.dtype)
+
+    # ... and the layers between, which it passes through whole, all together
     faces = range(int(layers.first.min()) + 1, int(layers.last.max()) + 1)
     if mode != "mean" and _SKIP and len(faces) > 2 * _BLOCK_FACES:
-        _fold_skipping(values, rays, layers, mode, result, faces, progress)
-        out = np.empty(rays.count, np.float32)
-        out[order] = result
-        if floats:
-            out[order[result == _ignored(mode, values.dtype)]] = np.nan
+        _fold_skipping(values, rays, layers, mode, result, faces, progress, fold_ends)
+    else:
+        fold_ends()
+        _fold_all_faces(values, rays, layers, mode, result, faces, progress)
+    out = np.empty(rays.count, np.float32)
+    if mode == "mean":
+        # every voxel counts, and the length is the ray's, unless some are NaN or infinite
+        length = result[1] if floats else rays.t1 - rays.t0
+        with np.errstate(invalid="ignore", divide="ignore"):
+            out[order] = result[0] / np.where(length > 0, length, np.nan)
         return out
+    out[order] = result
+    if floats:
+        out[order[result == _ignored(mode, values.dtype)]] = np.nan
+    return out
+
+
+def _fold_all_faces(values, rays, layers, mode, result, faces, progress):
+    """Fold every face of ``faces`` for every ray into ``result``: in as many runs of faces as there are threads
+    (NumPy lets go of Python's lock in its passes), each into its own copy of the result.
+    """
     runs = max(1, min(_THREADS, len(faces) // 32))
     bounds = np.linspace(faces.start, faces.stop, runs + 1).astype(int)
     parts = [range(max(low - 1, faces.start), high) for low, high in zip(bounds[:-1], bounds[1:], strict=True)]
@@ -393,17 +418,6 @@ def _project_through_layers(values, rays, mode, progress):
                 result[1][:] += other[1]
             else:
                 (np.maximum if mode == "mip" else np.minimum)(result, other, out=result)
-    out = np.empty(rays.count, np.float32)
-    if mode == "mean":
-        # every voxel counts, and the length is the ray's, unless some are NaN or infinite
-        length = result[1] if floats else rays.t1 - rays.t0
-        with np.errstate(invalid="ignore", divide="ignore"):
-            out[order] = result[0] / np.where(length > 0, length, np.nan)
-        return out
-    out[order] = result
-    if floats:
-        out[order[result == _ignored(mode, values.dtype)]] = np.nan
-    return out
 
 
 def _fold_in(result, chosen, cells, weights, layers, mode, dtype):
@@ -556,7 +570,7 @@ def _fold_whole_layers(values, rays, layers, mode, result, faces, progress, buff
         before = (steps_b, steps_c, phase_b, phase_c)
 
 
-def _fold_skipping(values, rays, layers, mode, result, faces, progress):
+def _fold_skipping(values, rays, layers, mode, result, faces, progress, fold_ends):
     """Fold the layers the rays pass through whole into ``result`` (the maximum or minimum), skipping, for each
     ray, the blocks of faces that cannot change its answer.
 
@@ -565,7 +579,14 @@ def _fold_skipping(values, rays, layers, mode, result, faces, progress):
     the block of the highest bound (a value it does meet, so a bound of its answer from the other side); then a
     block is followed, exactly, only for the rays whose bound there beats what they hold.  The result is the one
     every face gives, as a block skipped holds nothing above (below) what the ray already has.
+
+    ``fold_ends()`` folds the rays' first and last layers into ``result``: it runs on a thread of its own while
+    the bounds are found.
     """
+    from concurrent.futures import ThreadPoolExecutor
+
+    ends = ThreadPoolExecutor(1)
+    ends_done = ends.submit(fold_ends)
     beats = np.greater if mode == "mip" else np.less
     neutral = _ignored(mode, values.dtype)
     blocks = [range(max(j - 1, faces.start), min(j + _BLOCK_FACES, faces.stop))   # the face before: its layer's
@@ -578,6 +599,8 @@ def _fold_skipping(values, rays, layers, mode, result, faces, progress):
         higher = beats(bounds[k], highest)
         best[higher] = k
         np.copyto(highest, bounds[k], where=higher)
+    ends_done.result()
+    ends.shutdown()
     runs = max(1, min(_THREADS, len(blocks) // 2))
     parts = np.array_split(np.arange(len(blocks)), runs)
 
@@ -601,8 +624,6 @@ def _fold_skipping(values, rays, layers, mode, result, faces, progress):
         return
     # in as many runs of blocks as there are threads: first into the result (each ray in one block only), then
     # each into its own copy of it
-    from concurrent.futures import ThreadPoolExecutor
-
     with ThreadPoolExecutor(runs) as pool:
         list(pool.map(first, parts, buffers))
         results = [result] + [result.copy() for _ in parts[1:]]
