@@ -245,7 +245,7 @@ def test_skipping_changes_nothing(monkeypatch, seed):
     limits = [{}, {"clip": Clip(x=(3, 38), y=(2, None), cut_depth=-6.0)}, {"slab": (-9.0, 12.0)},
               {"shape": (40, 36, 22), "step": (2.0, 1.0, 1.0)}][seed % 4]
     monkeypatch.setattr(module, "_BLOCK_FACES", 4)           # several blocks across these small volumes
-    monkeypatch.setattr(module, "_PAIRS_PER_PIXEL", [0, 10 ** 9, 20][seed % 3])
+    monkeypatch.setattr(module, "_PAIRS_PER_PIXEL", [(0, 0), (10 ** 9, 10 ** 9), (20, 20)][seed % 3])
     for mode in ("mip", "minip"):
         np.testing.assert_array_equal(project(values, view, mode, **limits),
                                       every_face(monkeypatch, values, view, mode, **limits))

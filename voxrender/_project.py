@@ -30,7 +30,9 @@ _THREADS = min(2, os.cpu_count() or 1)
 _SKIP = True              # skip the blocks of faces that cannot change a ray's maximum (minimum); False: every face
 _BLOCK_FACES = 16         # faces per block
 _TILE = 4                 # the blocks' bounds are per tile of _TILE x _TILE voxels across the main axis
-_PAIRS_PER_PIXEL = 24     # a block's rays are read straight from the volume when fewer than a slice's pixels / this
+# a block's rays are read straight from the volume when fewer than a slice's pixels over this: (slices read in
+# place, slices read in blocks, which cost more a pixel)
+_PAIRS_PER_PIXEL = (200, 10)
 
 
 def project(values, view, mode="mip", *, shape=None, step=(1.0, 1.0, 1.0), clip=None, slab=None, progress=None):
@@ -638,7 +640,7 @@ def _fold_rays(values, rays, layers, mode, result, faces, chosen, paths, buffers
     """
     if not chosen.size:
         return
-    if chosen.size * _PAIRS_PER_PIXEL < paths.nb * paths.nc:
+    if chosen.size * _PAIRS_PER_PIXEL[paths.blocked] < paths.nb * paths.nc:
         _fold_pairs(paths, mode, result, faces, chosen)
         return
     some = copy.copy(layers)
@@ -670,6 +672,7 @@ class _Paths:
         self.stride_a, self.stride_b, self.stride_c = (layers.strides[k] for k in (a, b, c))
         self.nb, self.nc = layers.sizes[b], layers.sizes[c]
         self.floats = values.dtype.kind == "f"
+        self.blocked = _Slices(values, 2 - a).blocks
 
 
 def _fold_pairs(paths, mode, result, faces, chosen, chunk=4096):
@@ -688,21 +691,25 @@ def _fold_pairs(paths, mode, result, faces, chosen, chunk=4096):
     below_b = np.array([1 - s[0][1] for s in split])
     below_c = np.array([1 - s[1][1] for s in split])
     edge = (steps_b[:-1] + (rb > 0)) * rc - (steps_c[:-1] + (rc > 0)) * rb     # the edge before each face
-    same_b, same_c = steps_b[1:] == steps_b[:-1], steps_c[1:] == steps_c[:-1]
+    # the index along b moves across a layer when the carries differ, or the steps grew and the carry went
+    grew_b, grew_c = steps_b[1:] != steps_b[:-1], steps_c[1:] != steps_c[:-1]
     along_b, along_c = (1 if rb > 0 else -1), (1 if rc > 0 else -1)
-    layer_before = (js - 1) * paths.stride_a
+    layer_before = (js - 1) * paths.stride_a + paths.origin
+    steps_b, steps_c = steps_b.astype(np.intp), steps_c.astype(np.intp)
     for start in range(0, chosen.size, chunk):
         rays = chosen[start:start + chunk]
         carry_b = paths.part_b32[rays, None] >= below_b
         carry_c = paths.part_c32[rays, None] >= below_c
-        ib = paths.whole_b[rays, None] + steps_b.astype(np.intp) + carry_b
-        ic = paths.whole_c[rays, None] + steps_c.astype(np.intp) + carry_c
+        ib = paths.whole_b[rays, None] + steps_b
+        ib += carry_b
+        ic = paths.whole_c[rays, None] + steps_c
+        ic += carry_c
         crossed = (paths.first[rays, None] < js) & (js <= paths.last[rays, None])
         found = _gather_pairs(paths, ib, ic, crossed, layer_before, neutral, fold)
         if rb and rc and len(js) > 1:
             # the voxel between two crossings, in the layer between faces j - 1 and j, as _middle finds it
-            moves_b = np.where(same_b, carry_b[:, 1:] != carry_b[:, :-1], carry_b[:, 1:] == carry_b[:, :-1])
-            moves_c = np.where(same_c, carry_c[:, 1:] != carry_c[:, :-1], carry_c[:, 1:] == carry_c[:, :-1])
+            moves_b = (carry_b[:, 1:] != carry_b[:, :-1]) != grew_b
+            moves_c = (carry_c[:, 1:] != carry_c[:, :-1]) != grew_c
             both = moves_b & moves_c & crossed[:, 1:] & crossed[:, :-1]
             ray, face = np.nonzero(both)
             if ray.size:
@@ -719,25 +726,33 @@ def _gather_pairs(paths, ib, ic, crossed, layer_before, neutral, fold):
     """The fold of the two voxels beside each face (layers j - 1 and j) at minor indices ``ib, ic``; ``neutral``
     where the face is not ``crossed`` or the indices lie outside the volume (the slice buffers' rim).
     """
-    inside = crossed & (ib >= 0) & (ib < paths.nb) & (ic >= 0) & (ic < paths.nc)
-    cells = paths.origin + ib * paths.stride_b + ic * paths.stride_c + layer_before
-    cells[~inside] = paths.origin
+    inside = _inside(paths, ib, ic)
+    inside &= crossed
+    cells = ib * paths.stride_b
+    cells += ic * paths.stride_c
+    cells += layer_before
     found = fold(_finite_take(paths, cells, neutral), _finite_take(paths, cells + paths.stride_a, neutral))
-    found[~inside] = neutral
-    return found
+    return np.where(inside, found, neutral)
 
 
 def _gather(paths, ib, ic, layer, neutral):
     """The voxels at minor indices ``ib, ic`` of ``layer`` (its flat offset); ``neutral`` outside the volume."""
-    inside = (ib >= 0) & (ib < paths.nb) & (ic >= 0) & (ic < paths.nc)
-    cells = np.where(inside, paths.origin + ib * paths.stride_b + ic * paths.stride_c + layer, paths.origin)
-    found = _finite_take(paths, cells, neutral)
-    found[~inside] = neutral
-    return found
+    found = _finite_take(paths, ib * paths.stride_b + ic * paths.stride_c + layer, neutral)
+    return np.where(_inside(paths, ib, ic), found, neutral)
+
+
+def _inside(paths, ib, ic):
+    """Whether minor indices ``ib, ic`` lie in the volume (a negative index is a large unsigned one)."""
+    inside = ib.view(np.uintp) < paths.nb
+    inside &= ic.view(np.uintp) < paths.nc
+    return inside
 
 
 def _finite_take(paths, cells, neutral):
-    found = paths.flat.take(cells)
+    """The voxels at flat indices ``cells`` (any, outside the volume too: the caller masks them), NaN and
+    infinite ones ``neutral``.
+    """
+    found = paths.flat.take(cells, mode="clip")
     if paths.floats:
         found[~np.isfinite(found)] = neutral
     return found
