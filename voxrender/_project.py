@@ -705,40 +705,30 @@ def _fold_pairs(paths, mode, result, faces, chosen, chunk=4096):
         ic = paths.whole_c[rays, None] + steps_c
         ic += carry_c
         crossed = (paths.first[rays, None] < js) & (js <= paths.last[rays, None])
-        found = _gather_pairs(paths, ib, ic, crossed, layer_before, neutral, fold)
+        # the two voxels beside each face (layers j - 1 and j); neutral where the ray does not cross it there or
+        # is outside the volume (the slice buffers' rim)
+        inside = _inside(paths, ib, ic)
+        inside &= crossed
+        cells = ib * paths.stride_b
+        cells += ic * paths.stride_c
+        cells += layer_before
+        found = fold(_finite_take(paths, cells, neutral), _finite_take(paths, cells + paths.stride_a, neutral))
+        found = np.where(inside, found, neutral)
         if rb and rc and len(js) > 1:
-            # the voxel between two crossings, in the layer between faces j - 1 and j, as _middle finds it
+            # the voxel between two crossings, in the layer between faces j - 1 and j, as _middle finds it (for
+            # all pairs at once: most rays cross both minor axes' faces in most layers)
             moves_b = (carry_b[:, 1:] != carry_b[:, :-1]) != grew_b
             moves_c = (carry_c[:, 1:] != carry_c[:, :-1]) != grew_c
             both = moves_b & moves_c & crossed[:, 1:] & crossed[:, :-1]
-            ray, face = np.nonzero(both)
-            if ray.size:
-                z = edge[face] + carry_b[ray, face] * rc - carry_c[ray, face] * rb - paths.side[rays[ray]]
-                b_first = z < 0 if rb * rc > 0 else z > 0
-                mb = ib[ray, face] + b_first * along_b
-                mc = ic[ray, face] + ~b_first * along_c
-                middle = _gather(paths, mb, mc, layer_before[face + 1], neutral)
-                found[ray, face + 1] = fold(found[ray, face + 1], middle)
+            z = edge + carry_b[:, :-1] * rc - carry_c[:, :-1] * rb - paths.side[rays, None]
+            b_first = z < 0 if rb * rc > 0 else z > 0
+            ib, ic = ib[:, :-1] + b_first * along_b, ic[:, :-1] + ~b_first * along_c
+            both &= _inside(paths, ib, ic)
+            middle = cells[:, :-1] + paths.stride_a
+            middle += np.where(b_first, along_b * paths.stride_b, along_c * paths.stride_c)
+            middle = np.where(both, _finite_take(paths, middle, neutral), neutral)
+            fold(found[:, 1:], middle, out=found[:, 1:])
         result[rays] = fold(result[rays], fold.reduce(found, axis=1))
-
-
-def _gather_pairs(paths, ib, ic, crossed, layer_before, neutral, fold):
-    """The fold of the two voxels beside each face (layers j - 1 and j) at minor indices ``ib, ic``; ``neutral``
-    where the face is not ``crossed`` or the indices lie outside the volume (the slice buffers' rim).
-    """
-    inside = _inside(paths, ib, ic)
-    inside &= crossed
-    cells = ib * paths.stride_b
-    cells += ic * paths.stride_c
-    cells += layer_before
-    found = fold(_finite_take(paths, cells, neutral), _finite_take(paths, cells + paths.stride_a, neutral))
-    return np.where(inside, found, neutral)
-
-
-def _gather(paths, ib, ic, layer, neutral):
-    """The voxels at minor indices ``ib, ic`` of ``layer`` (its flat offset); ``neutral`` outside the volume."""
-    found = _finite_take(paths, ib * paths.stride_b + ic * paths.stride_c + layer, neutral)
-    return np.where(_inside(paths, ib, ic), found, neutral)
 
 
 def _inside(paths, ib, ic):
