@@ -604,34 +604,49 @@ def _fold_skipping(values, rays, layers, mode, result, faces, progress, fold_end
     ends_done.result()
     ends.shutdown()
     runs = max(1, min(_THREADS, len(blocks) // 2))
-    parts = np.array_split(np.arange(len(blocks)), runs)
 
-    def first(part, buffers):
-        for k in part:
-            mine = best == k
-            _fold_rays(values, rays, layers, mode, result, blocks[k],
-                       np.flatnonzero(mine & beats(bounds[k], result)), paths, buffers)
-            bounds[k][mine] = neutral                                               # done
+    def first(k, out, buffers):
+        mine = best == k
+        _fold_rays(values, rays, layers, mode, out, blocks[k], np.flatnonzero(mine & beats(bounds[k], out)),
+                   paths, buffers)
+        bounds[k][mine] = neutral                                                   # done
 
-    def then(part, out, progress, buffers):
-        if progress is not None:
-            part = progress(part, len(part), mode)
-        for k in part:
-            _fold_rays(values, rays, layers, mode, out, blocks[k], np.flatnonzero(beats(bounds[k], out)), paths,
-                       buffers)
+    def then(k, out, buffers):
+        _fold_rays(values, rays, layers, mode, out, blocks[k], np.flatnonzero(beats(bounds[k], out)), paths,
+                   buffers)
 
-    if runs == 1:
-        first(parts[0], buffers[0])
-        then(parts[0], result, progress, buffers[0])
-        return
-    # in as many runs of blocks as there are threads: first into the result (each ray in one block only), then
-    # each into its own copy of it
-    with ThreadPoolExecutor(runs) as pool:
-        list(pool.map(first, parts, buffers))
-        results = [result] + [result.copy() for _ in parts[1:]]
-        list(pool.map(then, parts, results, [progress] + [None] * (runs - 1), buffers))
+    # first into the result (each ray in one block only), then each thread into its own copy of it; the blocks
+    # handed out one at a time, as the threads come for them (their work differs much)
+    _on_threads(first, range(len(blocks)), [result] * runs, buffers[:runs])
+    results = [result] + [result.copy() for _ in range(runs - 1)]
+    numbers = range(len(blocks)) if progress is None else progress(range(len(blocks)), len(blocks), mode)
+    _on_threads(then, numbers, results, buffers[:runs])
     for other in results[1:]:
         (np.maximum if mode == "mip" else np.minimum)(result, other, out=result)
+
+
+def _on_threads(task, numbers, outs, buffers):
+    """``task(k, out, buffers)`` for every ``k`` of ``numbers``, on as many threads as ``outs`` (each with its
+    ``out`` and ``buffers``), each taking the next number when done with its last.
+    """
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
+    numbers, lock = iter(numbers), threading.Lock()
+
+    def work(out, buffers):
+        while True:
+            with lock:
+                k = next(numbers, None)
+            if k is None:
+                return
+            task(k, out, buffers)
+
+    if len(outs) == 1:
+        work(outs[0], buffers[0])
+        return
+    with ThreadPoolExecutor(len(outs)) as pool:
+        list(pool.map(work, outs, buffers))
 
 
 def _fold_rays(values, rays, layers, mode, result, faces, chosen, paths, buffers):
