@@ -274,3 +274,18 @@ def test_a_manifest_row_naming_no_file_fails_its_row_as_bad_input(tmp_path, stac
     assert rows["ball.npy"]["status"] == "ok"
     for name in ("missing.npy", "*.npy"):
         assert rows[name]["status"] == "failed" and "no such file or folder" in rows[name]["error"]
+
+
+def test_qc_sheets_are_made_of_slice_stacks_and_an_encoded_object_still_renders(tmp_path, stacks):
+    from voxrender import segments
+    from voxrender.qc import SliceOptions
+
+    encoded = tmp_path / "ball.vxs"
+    segments.save(segments.encode(np.load(stacks / "ball.npy") > 500), encoded)
+    work = batch.items_from([str(stacks / "box.npy"), str(encoded)], [], ReadOptions(), PrepOptions(threshold=500),
+                            RenderOptions(size=(24, 24)), batch.parse_views(["anterior"]), batch.Patterns(),
+                            qc_sheet=True, slices=SliceOptions(("axial",)))
+    rows = batch.run_batch(work, tmp_path / "out", jobs=1, make_sheet=True)
+    assert [row["status"] for row in rows] == ["ok", "ok"]
+    assert sorted(p.name for p in (tmp_path / "out" / "sheets").iterdir()) == ["box.png"]   # no grey values, no sheet
+    assert 'href="sheets/box.png"' in (tmp_path / "out" / "index.html").read_text()

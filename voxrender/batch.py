@@ -183,6 +183,13 @@ class Item:
         return Path(out_dir) / "sheets" / f"{self.name}.png"
 
     @property
+    def makes_sheet(self):
+        """Whether it gets a QC sheet: asked for, and its input holds grey values (an encoded object does not, and
+        shows in the batch's contact sheet alone).
+        """
+        return self.qc_sheet and not is_segments_file(self.input)
+
+    @property
     def needs_grey(self):
         """Whether its pictures draw grey values (projections), which the cache then keeps beside the object."""
         return self.options.projection is not None
@@ -366,13 +373,13 @@ def _encode_task(item, cache_dir, out_dir=None):
     projections, and its QC sheet when wanted and not there yet; returns a small report dict.
     """
     started = time.perf_counter()
-    sheet = item.sheet_path(out_dir) if item.qc_sheet and out_dir is not None else None
+    sheet = item.sheet_path(out_dir) if item.makes_sheet and out_dir is not None else None
     try:
         make_sheet = sheet is not None and not _is_png(sheet)
         if is_segments_file(item.input):
-            if item.needs_grey or make_sheet:
-                raise InputError(f"{item.input} is an encoded object, which keeps no grey values for projections or "
-                                 "a QC sheet; give the slice stack it was made from")
+            if item.needs_grey:
+                raise InputError(f"{item.input} is an encoded object, which keeps no grey values to project; give "
+                                 "the slice stack it was made from")
             return {"input": item.input, "segments": item.input, "seconds": {"load": 0.0, "prepare": 0.0}}
         with_octree = method_record(item.method).octree          # kept in the cache: built once, not per view
         key = cache_key(item.input, item.read, item.prepare)
@@ -959,7 +966,7 @@ def _render_all(items, out_dir, jobs, scheduler, cache_dir, progress):
                 rows[(item.name, view.label)] = _summary_row(item, view, outputs.picture, "done earlier")
             else:
                 todo.setdefault(id(item), (item, []))[1].append((index, view))
-        if item.qc_sheet and not _is_png(item.sheet_path(out_dir)):       # its sheet is made by its encode task
+        if item.makes_sheet and not _is_png(item.sheet_path(out_dir)):    # its sheet is made by its encode task
             todo.setdefault(id(item), (item, []))
     bar = progress(len(todo) + sum(len(v) for _, v in todo.values())) if progress else None
     pool = _executor(jobs, scheduler)
@@ -1098,7 +1105,7 @@ def _study_rows(items, rows, study_errors, out_dir):
         colours = next((json.loads(row["label_colours"]) for row in own if row.get("label_colours")), {})
         for entry in labels:
             entry.setdefault("colour", colours.get(str(entry["label"]), [128, 128, 128]))
-        sheet = item.sheet_path(out_dir) if item.qc_sheet else None
+        sheet = item.sheet_path(out_dir) if item.makes_sheet else None
         seconds = [row["total_s"] for row in made if isinstance(row.get("total_s"), float)]
         studies.append(StudyRow(item.name, item.input, error, relative(sheet) if sheet and sheet.is_file() else None,
                                 [] if turning else pictures, [path for _, path in pictures] if turning else [],
