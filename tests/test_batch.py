@@ -1,5 +1,6 @@
 import csv
 import json
+import re
 from pathlib import Path
 
 import imageio.v3 as iio
@@ -289,3 +290,25 @@ def test_qc_sheets_are_made_of_slice_stacks_and_an_encoded_object_still_renders(
     assert [row["status"] for row in rows] == ["ok", "ok"]
     assert sorted(p.name for p in (tmp_path / "out" / "sheets").iterdir()) == ["box.png"]   # no grey values, no sheet
     assert 'href="sheets/box.png"' in (tmp_path / "out" / "index.html").read_text()
+
+
+def test_a_rerun_keeps_each_pictures_labels_in_the_summary_and_the_page(tmp_path, stacks):
+    from voxrender.prep import LabelSelection
+
+    labels = np.zeros((12, 12, 12), np.uint8)
+    labels[2:6, 2:6, 2:6], labels[7:10, 7:10, 7:10] = 1, 2
+    np.save(tmp_path / "map.npy", labels)
+    work = batch.items_from([str(tmp_path / "map.npy"), str(stacks / "box.npy")], [], ReadOptions(),
+                            PrepOptions(threshold=None, labels=LabelSelection()), RenderOptions(size=(24, 24)),
+                            batch.parse_views(["anterior"]), batch.Patterns())
+    work[1].prepare = PrepOptions(threshold=500)                # a CT alone: no labels, so none missing
+    pages = []
+    for _ in range(2):
+        rows = batch.run_batch(work, tmp_path / "out", jobs=1)
+        pages.append((tmp_path / "out" / "index.html").read_text())
+        summary = read_summary(tmp_path / "out" / "summary.csv")
+        assert json.loads(summary[0]["label_volumes"])[1]["voxels"] == 27
+    assert [row["status"] for row in rows] == ["done earlier", "done earlier"]
+    tables = [re.findall(r'<table class="labels">.*?</table>', page) for page in pages]
+    assert tables[0] == tables[1] and len(tables[1]) == 1 and ">27<" in tables[1][0]      # the map's, kept
+    assert '<span class="flag' not in pages[1]              # the CT alone lacks no label: it has none to compare

@@ -54,7 +54,8 @@ from .view import PRESETS, angles_from_matrix, frame_together, rotation_matrix
 
 SUMMARY_COLUMNS = ["input", "name", "view", "alpha", "beta", "gamma", "method", "output", "status", "error",
                    "labels", "label_volumes", "load_s", "prepare_s", "render_s", "shade_s", "write_s", "total_s",
-                   "stats"]
+                   "stats", "label_colours", "overlaps"]
+LABEL_COLUMNS = ("labels", "label_volumes", "label_colours", "overlaps")    # what a picture done earlier keeps
 
 
 @dataclass(frozen=True)
@@ -959,11 +960,14 @@ def _render_all(items, out_dir, jobs, scheduler, cache_dir, progress):
     rows = {}
     todo = {}
     study_errors = {}
+    earlier = _earlier_rows(out_dir)
     for item in items:
         for index, view in enumerate(item.views):
             outputs = item.outputs(out_dir, view, index)
             if _is_done(outputs, item.options.size):
-                rows[(item.name, view.label)] = _summary_row(item, view, outputs.picture, "done earlier")
+                kept = earlier.get(str(outputs.picture), {})
+                rows[(item.name, view.label)] = _summary_row(item, view, outputs.picture, "done earlier",
+                                                             **{k: kept[k] for k in LABEL_COLUMNS if kept.get(k)})
             else:
                 todo.setdefault(id(item), (item, []))[1].append((index, view))
         if item.makes_sheet and not _is_png(item.sheet_path(out_dir)):    # its sheet is made by its encode task
@@ -1008,6 +1012,17 @@ def _render_all(items, out_dir, jobs, scheduler, cache_dir, progress):
         if bar:
             bar.close()
     return [rows[(item.name, view.label)] for item in items for view in item.views], study_errors
+
+
+def _earlier_rows(out_dir):
+    """The rows of the summary an earlier run left, by picture: a picture done earlier keeps its labels, so the
+    summary and the index page of a re-run say what a fresh run would.
+    """
+    try:
+        with open(Path(out_dir) / "summary.csv", newline="") as f:
+            return {row["output"]: row for row in csv.DictReader(f) if row.get("output")}
+    except (OSError, csv.Error, UnicodeDecodeError):
+        return {}
 
 
 def _check_patterns(items, out_dir):

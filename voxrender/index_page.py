@@ -60,8 +60,8 @@ class StudyRow:
 def missing_labels(studies):
     """The labels each study lacks that other studies of the batch have, by name.
 
-    A study lacks a label when it has none of that name, or has it with 0 voxels.  Failed studies are left
-    out on both sides: their failure is their flag, and they show no labels to compare.
+    A study lacks a label when it has none of that name, or has it with 0 voxels.  Failed studies, and studies
+    without labels (a CT alone), are left out on both sides: they show no labels to compare.
 
     Parameters
     ----------
@@ -79,10 +79,10 @@ def missing_labels(studies):
     >>> spleen = {"label": 2, "name": "spleen", "colour": [60, 80, 200], "voxels": 300, "ml": 0.3}
     >>> missing_labels([StudyRow("a", "a.nrrd", labels=[liver, spleen]),
     ...                 StudyRow("b", "b.nrrd", labels=[liver, {**spleen, "voxels": 0}]),
-    ...                 StudyRow("c", "c.nrrd", error="cannot read c.nrrd")])
+    ...                 StudyRow("c", "c.nrrd", error="cannot read c.nrrd"), StudyRow("d", "d.nrrd")])
     {'b': ['spleen']}
     """
-    studies = [study for study in studies if not study.error]
+    studies = [study for study in studies if not study.error and study.labels]
     present = {study.name: [label["name"] for label in study.labels if label["voxels"] > 0] for study in studies}
     seen = list(dict.fromkeys(name for names in present.values() for name in names))
     missing = {}
