@@ -377,3 +377,28 @@ def test_a_picture_shows_itself_as_png():
     data = result._repr_png_()
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     assert np.array_equal(iio.imread(io.BytesIO(data)), result.rgb)
+
+
+def test_a_volume_kept_in_its_stored_order_gets_no_patient_directions():
+    from voxrender.io import Volume
+    from voxrender.qc import SliceOptions, slice_pictures
+    from voxrender.study import Study
+
+    def yellow(meta):
+        study = Study(Volume(np.arange(6 * 7 * 8, dtype=np.float32).reshape(6, 7, 8), (1.0, 1.0, 1.0), meta))
+        rgb = slice_pictures(study, SliceOptions(("axial",), size=(64, 64)))[0][0][1]
+        return ((rgb[..., 0] > 200) & (rgb[..., 1] > 150) & (rgb[..., 2] < 60)).any()    # the letters' colour
+
+    assert yellow({"orientation": "RAS", "reoriented": "RAS -> LPS: flipped x, y"}) and yellow({})
+    assert not yellow({"orientation": "RAS"})                                           # --no-reorient
+
+
+def test_orientation_marks_on_a_volume_kept_in_its_stored_order_are_a_warning(tmp_path):
+    import nibabel as nib
+
+    values = np.full((8, 9, 10), -1000, np.int16)
+    values[2:6, 2:7, 2:8] = 500
+    nib.save(nib.Nifti1Image(values, np.diag([1.0, 1.0, 1.0, 1.0])), tmp_path / "ras.nii.gz")
+    result = run("render", tmp_path / "ras.nii.gz", "--no-reorient", "--threshold", "0", "--orientation-marks",
+                 "--size", "32", "-o", tmp_path / "p.png")
+    assert result.exit_code == 0 and "no patient directions" in result.output

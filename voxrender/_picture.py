@@ -245,7 +245,7 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
     occlusion = shade.ambient_occlusion(image.depth, image.view.scale) if options.ao else None
     rgb = shade.shade(image.depth, options.shading, image.view.scale, options.light, colour,
                       options.background, normal_image, occlusion)
-    if options.orientation_marks:
+    if _marks_apply(options, segments.meta):
         from .marks import draw_marks
 
         rgb = draw_marks(rgb, image.view)
@@ -263,6 +263,19 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
 
         result.rgb = draw_legend(rgb, [(_caption(v), v["colour"]) for v in result.visible_labels()])
     return result
+
+
+def _marks_apply(options, meta):
+    """Whether the orientation marks asked for can be drawn: the object lies in the patient frame (a warning when
+    not: kept in its stored order, its picture's edges have no patient directions).
+    """
+    from .orient import in_patient_frame
+
+    if options.orientation_marks and not in_patient_frame(meta):
+        warnings.warn("the volume was kept in its stored order, not the patient frame, so the picture's edges have "
+                      "no patient directions to mark; reorient it to have them", stacklevel=3)
+        return False
+    return options.orientation_marks
 
 
 def _caption(entry):
@@ -304,7 +317,7 @@ def _projection(segments, view, options, study, progress):
     window = options.window or study.window(options.projection)
     grey = window.to_uint8(values)
     rgb = np.where(seen[..., None], grey[..., None], np.asarray(options.background, np.uint8)).astype(np.uint8)
-    if options.orientation_marks:
+    if _marks_apply(options, segments.meta):
         from .marks import draw_marks
 
         rgb = draw_marks(rgb, view)

@@ -124,6 +124,20 @@ def to_canonical(values, spacing, direction, source="the header"):
     return out, spacing, remaining, note
 
 
+def in_patient_frame(meta):
+    """Whether a volume, or the object made of it, lies in the canonical frame by its ``meta``: brought there by
+    :func:`voxrender.io.read_volume` (``"reoriented"``), or stored so.  An input that does not say how it lies is
+    taken as stored in it, as the view presets take it; one kept in another stored order (``reorient=False``)
+    is not, and its pictures' edges have no patient directions.
+
+    >>> in_patient_frame({"orientation": "RAS", "reoriented": "RAS -> LPS: flipped x, y"}), in_patient_frame({})
+    (True, True)
+    >>> in_patient_frame({"orientation": "RAS"})
+    False
+    """
+    return "reoriented" in meta or meta.get("orientation") in (None, CANONICAL)
+
+
 def canonical_corner(shape, direction):
     """The stored voxel index ``(x, y, z)`` that :func:`to_canonical` brings to index ``(0, 0, 0)``: along each
     axis it flips, the last voxel, else the first.  With the stored affine, its position is the origin of the

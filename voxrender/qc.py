@@ -108,6 +108,7 @@ def slice_pictures(study, options=None, colours=None):
     (['axial 2 of 3', 'coronal 3 of 4', 'sagittal 3 of 5'], (32, 32, 3))
     """
     from .marks import edge_letters
+    from .orient import in_patient_frame
     from .slices import PLANES, label_slices, plane_image, slice_index, slice_picture
     from .view import View
 
@@ -125,13 +126,15 @@ def slice_pictures(study, options=None, colours=None):
     window = options.window or default_window(volume)
     grey = volume.values if study.has_grey else np.broadcast_to(np.uint8(0), volume.shape)   # a label map alone
     opacity = options.opacity if study.has_grey else 1.0         # nothing to see through the labels: full colours
+    framed = in_patient_frame(volume.meta)           # else (kept in its stored order) its edges have no directions
     normal_axis = {"axial": 0, "coronal": 1, "sagittal": 2}          # the [z, y, x] axis each plane is across
 
     def draw(plane, index, caption):
         image, pixel_mm = plane_image(grey, volume.spacing, plane, index)
         label_slice = None if labels is None else plane_image(labels, volume.spacing, plane, index)[0]
-        rgb = slice_picture(image, pixel_mm, window, label_slice, table, overlay, opacity,
-                            options.size, edge_letters(View.preset(PLANES[plane])), True, options.legend)
+        letters = edge_letters(View.preset(PLANES[plane])) if framed else None
+        rgb = slice_picture(image, pixel_mm, window, label_slice, table, overlay, opacity, options.size, letters,
+                            True, options.legend)
         return caption, rgb
 
     if not isinstance(options.at, str):

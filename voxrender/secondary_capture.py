@@ -352,9 +352,12 @@ def write_dicom_output(path, result, about):
     if study is None:
         raise InputError("a DICOM picture joins the study of the DICOM series it was made from, and none was given; "
                          "name that series", parameter="dicom_study_from")
+    from .orient import in_patient_frame
+
     view = getattr(getattr(result, "image", None), "view", None)
     orientation = None
-    if view is not None and (about.get("object") or {}).get("orientation_from"):
+    made_of = about.get("object") or {}
+    if view is not None and made_of.get("orientation") and in_patient_frame(made_of):   # its edges' directions
         from .marks import edge_letters
 
         edges = edge_letters(view)

@@ -113,7 +113,8 @@ class Study:
             "has_grey": self.has_grey})
 
 
-_KEPT_META = ("source", "format", "modality", "units", "series", "orientation", "padding", "crop_corner")
+_KEPT_META = ("source", "format", "modality", "units", "series", "orientation", "reoriented", "padding",
+              "crop_corner")
 
 
 def saved_files(stem):
