@@ -144,6 +144,10 @@ BAD = {
                                    "{out}/p.png"], ["--window", "width"]),
     "at outside in mm": (["slices", "{ct}", "--at", "0,0,500", "-o", "{out}/s.png"], ["--at", "outside"]),
     "at outside in voxels": (["slices", "{ct}", "--at", "50,0,0vox", "-o", "{out}/s.png"], ["--at", "outside"]),
+    "a label the map lacks": (["slices", "{ct}", "--labels-from", "{seg}", "--label", "9", "--at", "labels", "-o",
+                               "{out}/s.png"], ["--label", "not in"]),
+    "no label within the crop": (["slices", "{ct}", "--labels-from", "{seg}", "--crop", "0:2,0:2,0:2", "-o",
+                                  "{out}/s.png"], ["no label", "crop"]),
     "at outside across another plane": (["slices", "{ct}", "--slices", "axial", "--at", "500,0,0vox", "-o",
                                          "{out}/s.png"], ["--at", "outside"]),
     "slab thicker than the volume": (["render", "{ct}", "--threshold", "-500", "--projection", "mip", "--slab", "500",
@@ -171,11 +175,11 @@ BAD = {
 
 
 @pytest.mark.parametrize("case", list(BAD))
-def test_bad_input_is_one_line_and_writes_nothing(tmp_path, ct, vxs, case):
+def test_bad_input_is_one_line_and_writes_nothing(tmp_path, ct, seg, vxs, case):
     args, words = BAD[case]
     out = tmp_path / "out"
     out.mkdir()
-    result = run(*(a.format(ct=ct, vxs=vxs, out=out) for a in args))
+    result = run(*(a.format(ct=ct, seg=seg, vxs=vxs, out=out) for a in args))
     assert_bad_input(result, *words)
     assert list(out.rglob("*")) == []                        # no picture, no partial file, no folder
 
@@ -402,3 +406,22 @@ def test_orientation_marks_on_a_volume_kept_in_its_stored_order_are_a_warning(tm
     result = run("render", tmp_path / "ras.nii.gz", "--no-reorient", "--threshold", "0", "--orientation-marks",
                  "--size", "32", "-o", tmp_path / "p.png")
     assert result.exit_code == 0 and "no patient directions" in result.output
+
+
+def test_a_slab_is_measured_in_mm_on_a_grid_kept_as_it_is(tmp_path):
+    import json
+
+    values = np.full((20, 12, 10), -1000, np.int16)            # 20 slices 2.5 mm apart: 50 mm along z
+    values[2:18, 3:9, 3:7] = 40
+    values[15, 6, 5] = 2000                                    # 7.5 mm above the centre (9.5 slices up)
+    ct = write_nifti(tmp_path / "ct.nii.gz", values, spacing=(0.8, 1.0, 2.5))
+    base = ["render", ct, "--threshold", "0", "--projection", "mip", "--view", "inferior", "--no-resample",
+            "--size", "32"]
+    assert_bad_input(run(*base, "--slab", "60", "-o", tmp_path / "thick.png"), "--slab", "thicker")
+    for slab, brightest in (("10", 40), ("40", 2000)):
+        result = run(*base, "--slab", slab, "--stats-json", tmp_path / "s.json", "--values-out", tmp_path / "v.npy",
+                     "-o", tmp_path / "p.png")
+        assert result.exit_code == 0, result.output
+        low, high = json.loads((tmp_path / "s.json").read_text())["stats"]["slab"]
+        assert (high - low) * 2.5 == pytest.approx(float(slab))           # Z' in slices of 2.5 mm
+        assert np.nanmax(np.load(tmp_path / "v.npy")) == brightest

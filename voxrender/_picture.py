@@ -71,7 +71,7 @@ class RenderOptions:
         :class:`~voxrender.study.Study`).
     window : DisplayWindow, optional
         The grey values' window of a projection (default: :meth:`~voxrender.study.Study.window`, the same for every
-        view).
+        view; with a slab or clip limits, the 1st to 99th percentile of the picture's own values).
     slab : float, optional
         Project only a slab this many mm thick around the volume centre, or around the cut plane when there is one.
     """
@@ -298,11 +298,12 @@ def _projection(segments, view, options, study, progress):
     slab = None
     if options.slab is not None:
         low, high = depth_range(view, segments.shape)
-        thickness = options.slab / study.voxel
+        mm = float(np.linalg.norm(view.matrix[2] * np.asarray(segments.spacing)))   # a unit of Z' along the view
+        thickness = options.slab / mm
         if thickness > high - low:
             raise InputError(f"a slab of {options.slab:g} mm is thicker than the volume seen from this view "
-                             f"({(high - low) * study.voxel:.1f} mm); choose a thinner one, or drop it to project "
-                             "the whole volume", parameter="slab")
+                             f"({(high - low) * mm:.1f} mm); choose a thinner one, or drop it to project the whole "
+                             "volume", parameter="slab")
         middle = options.clip.cut_depth if options.clip is not None and options.clip.cut_depth is not None else 0.0
         slab = (middle - thickness / 2, middle + thickness / 2)
     started = time.perf_counter()
@@ -314,7 +315,14 @@ def _projection(segments, view, options, study, progress):
     if not seen.any():
         raise InputError("no ray of the projection meets a voxel within the clip limits and slab; widen them",
                          parameter="slab" if slab else "projection")
-    window = options.window or study.window(options.projection)
+    if options.window is not None:
+        window = options.window
+    elif slab or options.clip is not None:          # a part of the study: its own values (a slab's MinIP is no air)
+        from .display import auto_window
+
+        window = auto_window(values[seen])
+    else:                                           # the whole study: one window for every view of it
+        window = study.window(options.projection)
     grey = window.to_uint8(values)
     rgb = np.where(seen[..., None], grey[..., None], np.asarray(options.background, np.uint8)).astype(np.uint8)
     if _marks_apply(options, segments.meta):

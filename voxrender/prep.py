@@ -459,15 +459,7 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
     source = volume.meta.get("source", "the label map")
     check_labels(values, source)
     counts = label_counts(values)                                         # a count, not a sort of every voxel
-    present = np.asarray(sorted(counts), np.int64)
-    if not len(present):
-        raise InputError(f"{source} holds no label: every voxel is 0 (background)" + (" in the crop" if crop else ""))
-    chosen = present if selection.chosen is None else np.asarray(sorted(set(selection.chosen)))
-    missing = np.setdiff1d(chosen, present)
-    if len(missing):
-        shown = ", ".join(str(v) for v in present[:30]) + (" ..." if len(present) > 30 else "")
-        raise InputError(f"label {', '.join(str(v) for v in missing)} is not in {source}; it holds {shown}",
-                         parameter="label")
+    chosen = chosen_labels(counts, selection.chosen, source, crop is not None)
     voxel, out_shape = _grid(values.shape, volume.spacing, voxel, resample)
     spacing = tuple(float(s) for s in volume.spacing)
     if out_shape is not None:
@@ -481,6 +473,27 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
         raise InputError("the chosen labels vanish at this voxel size; choose a smaller one", parameter="voxel")
     return labels, {"labels": [int(v) for v in chosen], "voxels": {int(v): counts[int(v)] for v in chosen},
                     "voxel": voxel, "spacing": spacing}
+
+
+def chosen_labels(counts, chosen, source="the label map", cropped=False):
+    """The labels chosen of a label map that holds ``counts`` (``{label: voxels}``, :func:`label_counts`), all of
+    them when ``chosen`` is ``None``, as a sorted array; an :class:`InputError` when it holds none, or not one of
+    those chosen.
+
+    >>> chosen_labels({3: 10, 7: 2}, None).tolist(), chosen_labels({3: 10, 7: 2}, (7,)).tolist()
+    ([3, 7], [7])
+    """
+    present = np.asarray(sorted(counts), np.int64)
+    if not len(present):
+        raise InputError(f"{source} holds no label: every voxel is 0 (background)"
+                         + (" in the crop" if cropped else ""))
+    chosen = present if chosen is None else np.asarray(sorted(set(chosen)))
+    missing = np.setdiff1d(chosen, present)
+    if len(missing):
+        shown = ", ".join(str(v) for v in present[:30]) + (" ..." if len(present) > 30 else "")
+        raise InputError(f"label {', '.join(str(v) for v in missing)} is not in {source}"
+                         + (" within the crop" if cropped else "") + f"; it holds {shown}", parameter="label")
+    return chosen
 
 
 def label_counts(values):

@@ -203,7 +203,8 @@ def load_study(path, read=None, prepare=None, progress=None, encode=True):
             labels_volume = replace(volume, values=on_image_grid(found, volume, name),
                                     meta={**found.meta, "source": str(name), **where})
             prepare = replace(prepare, labels=replace(selection, source=labels_volume))
-        labels = _chosen(prep.crop(labels_volume.values, prepare.crop), selection.chosen, labels_volume)
+        labels = _chosen(prep.crop(labels_volume.values, prepare.crop), selection.chosen, labels_volume,
+                         prepare.crop is not None)
         table = labels_volume.meta.get("label_table")
         overlaps = labels_volume.meta.get("overlaps") or []
     encoded = None
@@ -217,9 +218,13 @@ def load_study(path, read=None, prepare=None, progress=None, encode=True):
                  has_grey=selection is None or selection.source is not None)
 
 
-def _chosen(values, chosen, source):
-    """The label map's ``chosen`` labels (all when ``None``), 0 elsewhere, as uint16."""
-    prep.check_labels(values, source.meta.get("source", "the label map"))
+def _chosen(values, chosen, source, cropped):
+    """The label map's ``chosen`` labels (all when ``None``), 0 elsewhere, as uint16; refused when it holds none of
+    them (:func:`voxrender.prep.chosen_labels`).
+    """
+    name = source.meta.get("source", "the label map")
+    prep.check_labels(values, name)
+    prep.chosen_labels(prep.label_counts(values), chosen, name, cropped)
     labels = np.asarray(values).astype(np.uint16, copy=False)
     if chosen is not None:
         labels = np.where(np.isin(labels, chosen), labels, 0).astype(np.uint16)
