@@ -382,8 +382,7 @@ def render_command(input_path, output_path, **options):
                          "minip or mean), or drop it", parameter="window")
     outputs = Outputs(output_path, **_output_paths(options))
     outputs.check(render_options)
-    for path in outputs.wanted().values():
-        output.check_writable(path)
+    _check_output_paths(outputs.wanted())
     joins = _dicom_study(input_path, options, outputs.dicom)         # a non-DICOM input is refused before reading
     study = None
     if render_options.projection:
@@ -400,6 +399,24 @@ def render_command(input_path, output_path, **options):
                      loaded.tree_for(render_options.method), study=study)
     result.seconds = {**loaded.seconds, **result.seconds}
     write_outputs(result, outputs, {**about(loaded.segments), **joins})   # an empty picture was warned of
+
+
+def _check_output_paths(paths):
+    """The files a command writes (``{output name: path or None}``): each writable, none given twice, and a DICOM
+    picture's named ``.dcm`` (a PACS takes it by what it holds, a person by its name).
+    """
+    seen = {}
+    for name, path in paths.items():
+        if path is None:
+            continue
+        if name == "dicom" and Path(path).suffix.lower() != ".dcm":
+            raise InputError(f"{path} must end in .dcm", parameter="dicom")
+        if Path(path).resolve() in seen:
+            first = seen[Path(path).resolve()]
+            raise InputError(f"{path} is given for two outputs ({'-o' if first == 'picture' else flag(first)} and "
+                             f"{flag(name)}); give each its own file", parameter=name)   # the picture comes first
+        seen[Path(path).resolve()] = name
+        output.check_writable(path)
 
 
 def _write_with_dicom(path, rgb, dicom, joins, what):
@@ -429,7 +446,16 @@ def _dicom_study(input_path, options, wanted):
         return {}
     from .secondary_capture import dicom_study
 
-    return {"dicom_study": dicom_study(options.get("dicom_study_from") or input_path, options.get("series"))}
+    source = options.get("dicom_study_from")
+    if source is None:
+        return {"dicom_study": dicom_study(input_path, options.get("series"))}
+    try:
+        return {"dicom_study": dicom_study(source)}
+    except InputError as exc:       # --series chooses the input's series; a study folder's is chosen by a file of it
+        if exc.parameter != "series":
+            raise
+        raise InputError(f"{exc.message.split('; choose')[0]}; name one file of the series the picture joins",
+                         parameter="dicom_study_from") from None
 
 
 @main.command("slices")
@@ -460,11 +486,7 @@ def slices_command(input_path, output_path, size, colour_table, legend, dicom, *
     from .study import load_study
 
     _check_vxs_options(input_path, options)
-    for path in (output_path, dicom):
-        if path is not None:
-            output.check_writable(path)
-    if dicom is not None and dicom.suffix.lower() != ".dcm":
-        raise InputError(f"{dicom} must end in .dcm", parameter="dicom")
+    _check_output_paths({"picture": output_path, "dicom": dicom})
     joins = _dicom_study(input_path, options, dicom)
     chosen = parse.labels(options["label"]) if options["label"] else None
     labelled = options["labels"] or options["label"] or options["labels_from"]
@@ -739,9 +761,7 @@ def sheet_command(inputs, output_path, views, view_list, angles, methods, per_la
     if given:
         raise InputError(f"a sheet is one picture: {', '.join(given)} cannot apply; use render or batch")
     dicom = options.get("dicom")
-    for path in (output_path, dicom):
-        if path is not None:
-            output.check_writable(path)
+    _check_output_paths({"picture": output_path, "dicom": dicom})
     names = [*views, *(parse.planes(view_list) if view_list else ())]
     chosen = batch.parse_views(names, [parse.vector(a, "angles") for a in angles])
     columns = [(v.label, (v.alpha, v.beta, v.gamma)) for v in chosen]
