@@ -377,9 +377,7 @@ def render_command(input_path, output_path, **options):
     _check_vxs_options(input_path, options)
     angles = _view_from(options)
     render_options = _render_options(options)
-    if render_options.window is not None and not render_options.projection:
-        raise InputError("a window shows grey values, and a surface picture draws none; give a projection too (mip, "
-                         "minip or mean), or drop it", parameter="window")
+    _check_window(render_options)
     outputs = Outputs(output_path, **_output_paths(options))
     outputs.check(render_options)
     _check_output_paths(outputs.wanted())
@@ -399,6 +397,13 @@ def render_command(input_path, output_path, **options):
                      loaded.tree_for(render_options.method), study=study)
     result.seconds = {**loaded.seconds, **result.seconds}
     write_outputs(result, outputs, {**about(loaded.segments), **joins})   # an empty picture was warned of
+
+
+def _check_window(render_options, slice_options=None):
+    """A window shows grey values: refused when nothing drawn has any (surfaces alone)."""
+    if render_options.window is not None and not render_options.projection and slice_options is None:
+        raise InputError("a window shows grey values, and a surface picture draws none; give a projection (mip, "
+                         "minip or mean) or slices too, or drop it", parameter="window")
 
 
 def _check_output_paths(paths):
@@ -715,6 +720,8 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
         raise InputError(f"--out {out_dir} is a file; give a folder")
     patterns = batch.Patterns(pattern, **{name: str(path) for name, path in _output_paths(options).items()})
     slice_options = _slice_options(options)
+    render_options = _render_options(options)
+    _check_window(render_options, slice_options)
     if per_label and options["projection"]:
         raise InputError("a projection draws grey values, not labels one by one; drop --per-label, or the projection",
                          parameter="per_label")
@@ -723,7 +730,7 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
     if options["dicom_study_from"] and not options.get("dicom"):
         raise InputError("names the study a DICOM output joins; give --dicom-out too", parameter="dicom_study_from")
     items = batch.items_from(batch.expand_inputs(inputs), batch.read_manifest(manifest) if manifest else [],
-                             _read_options(options), _prep_options(options), _render_options(options),
+                             _read_options(options), _prep_options(options), render_options,
                              batch.parse_views(views, [parse.vector(a, "angles") for a in angles], turntable, axis),
                              patterns, per_label, make_sheet, slice_options, options["dicom_study_from"])
     animations = [kind for kind, wanted in (("gif", gif), ("mp4", mp4)) if wanted]
@@ -768,6 +775,7 @@ def sheet_command(inputs, output_path, views, view_list, angles, methods, per_la
     render_options = _render_options(options)
     read, prepare = _read_options(options), _prep_options(options)
     slice_options = _slice_options(options)
+    _check_window(render_options, slice_options)
     if methods and per_label:
         raise InputError("give --methods or --per-label, not both: a sheet has one kind of row")
     if (methods or per_label) and len(inputs) > 1:

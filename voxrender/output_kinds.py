@@ -46,7 +46,8 @@ DEPTH = Need("depth", "a projection has no depth, its pixels hold grey values; d
              "values", "projection", lambda options: not options.projection)
 VALUES = Need("values", "only a projection has grey values to write; choose a projection (mip, minip or mean)",
               "projection", lambda options: bool(options.projection))
-LABELS = Need("labels", "the object has no labels to write; render the labels of a label map")
+LABELS = Need("labels", "the picture has no label image to write: it is of a surface of labels, and a projection "
+              "has none; render the labels of a label map, without a projection")
 LABEL_ROWS = Need("label_rows", "the object has no labels to write; render the labels of a label map")
 
 

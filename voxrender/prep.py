@@ -374,7 +374,7 @@ def _windowed(values, spacing, windows, voxel, resample, progress):
     object is made on, slice by slice: resampled to cubic voxels, or the input's own.  Returns it with the voxel
     size and the spacing of that grid.
     """
-    voxel, out_shape = _grid(values.shape, spacing, voxel, resample)
+    voxel, out_shape = cubic_grid(values.shape, spacing, voxel, resample)
     planes = _resample_slices(values, spacing, voxel, progress) if out_shape is not None else values
     labels = np.empty(out_shape or values.shape, np.uint8)
     # NaN is in no window, but inf is in an open one: a float volume holding either is cleaned slice by slice
@@ -388,7 +388,7 @@ def _windowed(values, spacing, windows, voxel, resample, progress):
     return labels, voxel, (voxel,) * 3 if out_shape is not None else tuple(float(s) for s in spacing)
 
 
-def _grid(shape, spacing, voxel, resample):
+def cubic_grid(shape, spacing, voxel, resample):
     """The cubic voxel size (mm) and the shape of the resampled grid (``None`` when the input grid is kept)."""
     if voxel is not None and not (voxel > 0 and math.isfinite(voxel)):
         raise InputError(f"{voxel} must be a positive size in mm", parameter="voxel")
@@ -460,7 +460,7 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
     check_labels(values, source)
     counts = label_counts(values)                                         # a count, not a sort of every voxel
     chosen = chosen_labels(counts, selection.chosen, source, crop is not None)
-    voxel, out_shape = _grid(values.shape, volume.spacing, voxel, resample)
+    voxel, out_shape = cubic_grid(values.shape, volume.spacing, voxel, resample)
     spacing = tuple(float(s) for s in volume.spacing)
     if out_shape is not None:
         # the input voxel nearest each grid point (labels cannot be interpolated)

@@ -77,7 +77,8 @@ def default_window(volume):
         return CT_WINDOWS["soft-tissue"]
     values = np.asarray(volume.values[::max(1, volume.shape[0] // 16)])      # a few slices tell
     finite = values[np.isfinite(values)] if values.dtype.kind == "f" else values.ravel()
-    if finite.size and -1100 <= finite.min() <= -900 and finite.max() >= 200:      # a NIfTI CT, which names no unit
+    air = np.count_nonzero((finite >= -1100) & (finite <= -900))       # a NIfTI CT, which names no unit (its air)
+    if finite.size and air >= 0.01 * finite.size and finite.max() >= 200:
         return CT_WINDOWS["soft-tissue"]
     return auto_window(volume.values)
 
@@ -127,7 +128,6 @@ def slice_pictures(study, options=None, colours=None):
     grey = volume.values if study.has_grey else np.broadcast_to(np.uint8(0), volume.shape)   # a label map alone
     opacity = options.opacity if study.has_grey else 1.0         # nothing to see through the labels: full colours
     framed = in_patient_frame(volume.meta)           # else (kept in its stored order) its edges have no directions
-    normal_axis = {"axial": 0, "coronal": 1, "sagittal": 2}          # the [z, y, x] axis each plane is across
 
     def draw(plane, index, caption):
         image, pixel_mm = plane_image(grey, volume.spacing, plane, index)
@@ -139,20 +139,30 @@ def slice_pictures(study, options=None, colours=None):
 
     if not isinstance(options.at, str):
         indices = {plane: slice_index(volume, plane, options.at) for plane in PLANES}   # the point lies inside
-        row = []
-        for plane in options.planes:
-            index = indices[plane]
-            count = volume.shape[normal_axis[plane]]
-            row.append(draw(plane, index, f"{plane} {index + 1} of {count}"))
-        return [row]
+        return [[draw(plane, indices[plane], f"{plane} {_numbered(volume, plane, indices[plane])}")
+                 for plane in options.planes]]
     places = {plane: label_slices(labels, plane, options.at) for plane in options.planes}
     rows = []
     for label, (name, _) in table.items():
         if label not in places[options.planes[0]]:
             continue
-        rows.append([draw(plane, places[plane][label], f"{name}, {plane} {places[plane][label] + 1}")
+        rows.append([draw(plane, places[plane][label],
+                          f"{name}, {plane} {_numbered(volume, plane, places[plane][label])}")
                      for plane in options.planes])
     return rows
+
+
+def _numbered(volume, plane, index):
+    """A slice's number for its caption: counted from 1 in the input, as a point in voxels names it (a cropped
+    volume's slices from the crop's corner), "of N" when the volume is not cropped.
+    """
+    from .slices import plane_axes
+
+    normal = plane_axes(plane)[0]                       # the object axis (x, y, z) the plane is across
+    corner = volume.meta.get("crop_corner")
+    if corner is None:
+        return f"{index + 1} of {volume.shape[2 - normal]}"
+    return f"{index + corner[normal] + 1}"
 
 
 def label_rows(study, colours=None):

@@ -55,7 +55,7 @@ class SlicePoint:
             raise InputError(f"{self.x}, {self.y}, {self.z} must be three finite numbers", parameter="at")
 
 
-def _plane_axes(plane):
+def plane_axes(plane):
     """``(normal, (row, row_sign), (column, column_sign))``: the object axes (0 x, 1 y, 2 z) of ``plane``, taken
     from its view preset's rotation (image axis ``X'`` is the picture's columns, ``Y'`` its rows, ``Z'`` the
     viewing direction), so the slices read exactly as the renderers' pictures of that preset.
@@ -103,7 +103,7 @@ def slice_index(volume, plane, at=None):
     >>> slice_index(volume, "axial", SlicePoint(0, 0, 1.0))          # z = -10 + 2.5 * 4.4 mm
     4
     """
-    normal, _, _ = _plane_axes(plane)
+    normal, _, _ = plane_axes(plane)
     count = volume.shape[2 - normal]
     if at is None:
         return count // 2
@@ -158,7 +158,7 @@ def label_slices(labels, plane, how="centroid"):
     """
     if how not in ("centroid", "largest"):
         raise InputError(f"unknown choice {how!r}; choose 'centroid' or 'largest'", parameter="at")
-    normal, _, _ = _plane_axes(plane)
+    normal, _, _ = plane_axes(plane)
     labels = np.asarray(labels)
     if labels.ndim != 3 or labels.dtype.kind not in "iub":
         raise InputError(f"the labels must be a 3-D array of whole numbers, not {labels.dtype} of shape "
@@ -214,7 +214,7 @@ def plane_image(values, spacing, plane, index):
     array([[5, 7],
            [1, 3]])
     """
-    normal, (row, row_sign), (column, column_sign) = _plane_axes(plane)
+    normal, (row, row_sign), (column, column_sign) = plane_axes(plane)
     values = np.asarray(values)
     count = values.shape[2 - normal]
     if not 0 <= index < count or int(index) != index:

@@ -11,7 +11,6 @@ workers that draw it (:func:`load_saved`).
 from __future__ import annotations
 
 import json
-import math
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -212,9 +211,9 @@ def load_study(path, read=None, prepare=None, progress=None, encode=True):
         started = time.perf_counter()
         encoded = Encoded(encode_volume(volume, prepare, read, progress, source=path),
                           {**seconds, "prepare": time.perf_counter() - started})
-    voxel = prepare.voxel or min(volume.spacing)
-    resampled = prepare.resample and not all(math.isclose(s, voxel) for s in volume.spacing)
-    return Study(cropped(volume, prepare.crop), labels, table, encoded, float(voxel), bool(resampled), overlaps,
+    part = cropped(volume, prepare.crop)
+    voxel, grid = prep.cubic_grid(part.shape, part.spacing, prepare.voxel, prepare.resample)   # the object's grid
+    return Study(part, labels, table, encoded, float(voxel), grid is not None, overlaps,
                  has_grey=selection is None or selection.source is not None)
 
 
