@@ -166,8 +166,8 @@ def _numbered(volume, plane, index):
 
 
 def label_rows(study, colours=None):
-    """Each label of the study with its name, colour, voxels and mL, counted on the label map's own grid
-    (:func:`voxrender.labels.label_list`).
+    """Each label of the study with its name, colour, voxels and mL, counted on the image's grid, where the slices
+    show them (:func:`voxrender.labels.label_list`).
     """
     from .labels import label_list
     from .prep import label_counts
