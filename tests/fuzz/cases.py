@@ -796,7 +796,7 @@ def _make_case(seed, number, case):
 
 def commands_for(rng, seed):
     """The voxrender command lines of a case: render (or batch) at 64 pixels, sometimes a threshold, sometimes
-    ``info`` too."""
+    ``info`` too, and sometimes the QC commands (:func:`qc_commands`)."""
     if seed.command == "batch":
         return [["batch", "--manifest", "{case}/" + seed.path, "-o", "{out}/batch", "--size", "64"]]
     options = [o if not o.startswith(seeds.INPUT + "/") else "{case}/" + o for o in seed.options]
@@ -806,7 +806,59 @@ def commands_for(rng, seed):
     commands = [render]
     if rng.random() < 0.25 and not seed.path.endswith((".vxs", ".vxo")) and "--colours" not in options:
         commands.append(["info", "{case}/" + seed.path, *[o for o in options if o != "--labels"]])
+    return commands + qc_commands(rng, seed, options)
+
+
+# The DICOM seeds' inputs (a classic series, an enhanced file, the CT of a SEG or an RTSTRUCT): a picture of them
+# may be written as a Secondary Capture in their study.
+DICOM_INPUTS = {f"{seeds.INPUT}/{name}" for name in ("series", "enhanced", "ct")}
+SLICE_EXTRAS = [[], [], ["--overlay", "outline"], ["--legend"], ["--at", "labels"], ["--at", "1,2,3vox"],
+                ["--window", "bone"], ["--slices", "axial"]]
+
+
+def qc_commands(rng, seed, options):
+    """Issue 23's commands on a case's input, drawn after the render's and ``info``'s so that every earlier case
+    keeps its commands: ``slices`` (the seed's label options; no threshold), a projection (sometimes of a slab), a
+    QC sheet, and a picture written as DICOM too (mostly of the DICOM seeds; any other input must refuse it)."""
+    source = "{case}/" + seed.path
+    picture = ["-o", "{out}/x.png", "--size", "64"]
+    label_image = "--labels" in options
+    # A label image's projection is refused (it has no grey values): project its values as grey ones instead.
+    grey = _without(options, "--labels", "--colours") if label_image else options
+    commands = []
+    if rng.random() < 0.3:
+        commands.append(["slices", source, *picture, *options, *rng.choice(SLICE_EXTRAS)])
+    if rng.random() < 0.3:
+        projection = ["render", source, *picture, *grey, "--projection", rng.choice(["mip", "minip", "mean"])]
+        if rng.random() < 0.3:
+            projection += ["--slab", rng.choice(["20", "5"])]
+        commands.append(projection)
+    if rng.random() < 0.15:
+        sheet = ["sheet", source, "--slices", "axial,coronal,sagittal", *picture, *options]
+        commands.append(sheet if label_image else sheet + ["--projection", "mip"])
+    if rng.random() < (0.4 if seed.path in DICOM_INPUTS else 0.05):
+        kind = rng.choice(["render", "projection", "slices", "sheet"])
+        if kind == "render":
+            command = ["render", source, *picture, *options]
+        elif kind == "projection":
+            command = ["render", source, *picture, *grey, "--projection", "mip"]
+        elif kind == "slices":
+            command = ["slices", source, *picture, *options]
+        else:
+            command = ["sheet", source, "--slices", "axial,coronal,sagittal", "--projection", "mip", *picture,
+                       *grey]
+        commands.append(command + ["--dicom-out", "{out}/x.dcm"])
     return commands
+
+
+def _without(options, *flags):
+    """``options`` without ``flags``, ``--colours`` with its file."""
+    kept, skip = [], False
+    for option in options:
+        if not skip and option not in flags:
+            kept.append(option)
+        skip = option == "--colours" and option in flags
+    return kept
 
 
 def copy_input(case, destination):

@@ -21,6 +21,7 @@ GOOD = ("picture", "bad input")
 MISBEHAVIOURS = ("internal error", "signal", "timeout", "memory", "traceback", "partial output", "output escaped",
                  "input modified", "bad input message", "not generated")
 KEPT = Path(__file__).resolve().parents[1] / "fuzz_cases"
+PICTURE_COMMANDS = ("render", "slices", "sheet")    # each writes its picture to -o, and to --dicom-out if given
 
 
 def _limits():
@@ -38,11 +39,13 @@ def run_command(command, case, out):
     except subprocess.TimeoutExpired:
         return "timeout", []
     lines = done.stderr.strip().splitlines()
-    return classify(command[0], done.returncode, lines, out), lines[-3:]
+    return classify(command, done.returncode, lines, out), lines[-3:]
 
 
 def classify(command, status, lines, out):
-    """The outcome of a command from its exit ``status``, its stderr ``lines`` and its output folder ``out``."""
+    """The outcome of a ``command`` line from its exit ``status``, its stderr ``lines`` and its output folder
+    ``out``: a picture command must write exactly its picture (``x.png``, and ``x.dcm`` when asked), each readable."""
+    name = command[0]
     if status < 0:
         return "signal"
     if any(line.startswith("Traceback (most recent call last)") for line in lines):
@@ -51,11 +54,11 @@ def classify(command, status, lines, out):
         return "memory" if any("out of memory" in line or "MemoryError" in line for line in lines) else \
             "internal error"
     messages = [line for line in lines if not line.startswith("warning: ")]
-    if command == "batch":
+    if name == "batch":
         return _batch_outcome(status, messages, out / "batch")
     if status == 0:
-        if command == "render":
-            return "picture" if _only_picture(out) else "partial output"
+        if name in PICTURE_COMMANDS:
+            return "picture" if _only_picture(out, dicom="--dicom-out" in command) else "partial output"
         return "picture"
     if status == 2 and len(messages) == 1 and messages[0].startswith("error: "):
         return "bad input" if not _files(out) else "partial output"
@@ -98,9 +101,11 @@ def _files(folder):
     return [p for p in folder.rglob("*") if p.is_file()] if folder.exists() else []
 
 
-def _only_picture(out):
-    files = _files(out)
-    return files == [out / "x.png"] and _reads(files[0])
+def _only_picture(out, dicom=False):
+    """Whether ``out`` holds ``x.png`` (and ``x.dcm`` if ``dicom``), nothing else, and each reads."""
+    files = sorted(_files(out))
+    expected = [out / "x.dcm", out / "x.png"] if dicom else [out / "x.png"]
+    return files == expected and _reads(out / "x.png") and (not dicom or _reads_dicom(out / "x.dcm"))
 
 
 def _reads(picture):
@@ -111,6 +116,18 @@ def _reads(picture):
             image.load()
         return True
     except Exception:  # noqa: BLE001 - any failure to read the picture is what this looks for
+        return False
+
+
+def _reads_dicom(path):
+    """Whether pydicom reads ``path`` as an RGB picture: its header and its pixel data, of the size it says."""
+    try:
+        import pydicom
+
+        ds = pydicom.dcmread(path)
+        pixels = ds.pixel_array
+        return pixels.shape == (ds.Rows, ds.Columns, 3) and ds.SamplesPerPixel == 3
+    except Exception:  # noqa: BLE001 - any failure to read the file is what this looks for
         return False
 
 
