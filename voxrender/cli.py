@@ -505,8 +505,8 @@ def slices_command(input_path, output_path, size, colour_table, legend, dicom, *
     rows = slice_pictures(study, slice_options, table)
     picture_rgb = sheet([[rgb for _, rgb in row] for row in rows], [[caption for caption, _ in row] for row in rows])
     _write_with_dicom(output_path, picture_rgb, dicom, joins,
-                      f"slices {', '.join(slice_options.planes)}" + (f" with the labels of {options['labels_from']}"
-                                                                      if options["labels_from"] else ""))
+                      f"slices {', '.join(slice_options.planes)}"
+                      + (f" with the labels of {options['labels_from'].name}" if options["labels_from"] else ""))
     click.echo(f"{output_path}: {len(rows)} row{'s' * (len(rows) > 1)} of {', '.join(slice_options.planes)}")
 
 
@@ -795,7 +795,8 @@ def sheet_command(inputs, output_path, views, view_list, angles, methods, per_la
                           + (f", {render_options.projection}" if render_options.projection else "")
                           + (f", slices {', '.join(slice_options.planes)}" if slice_options else "")
                           + (f", threshold {chose['threshold']}" if "threshold" in chose else "")
-                          + (f", the labels of {chose['label_source']}" if "label_source" in chose else ""))
+                          + (f", the labels of {Path(chose['label_source']).name}" if "label_source" in chose
+                             else ""))                       # its name alone: a local path means nothing in a PACS
         click.echo(f"{output_path}: the QC sheet of {inputs[0]}")
         return
     if dicom is not None:

@@ -132,7 +132,7 @@ def _header(path, tags=None):
         for keyword in tags or ():              # pydicom decodes a value when first asked: a damaged one fails here
             ds.get(keyword)
     except damaged_file_errors() as exc:
-        raise InputError(f"cannot read DICOM file {path}: {first_line(exc)}", parameter="dicom_study_from") from None
+        raise InputError(f"cannot read DICOM file {path}: {first_line(exc)}") from None     # the file is at fault
     return ds
 
 
@@ -154,7 +154,7 @@ def _image_headers(files, path):
             continue
         if "SOPClassUID" not in ds or "SOPInstanceUID" not in ds:
             raise InputError(f"DICOM file {f} has no SOPClassUID or SOPInstanceUID, so the picture cannot reference "
-                             "it; the file is damaged", parameter="dicom_study_from")
+                             "it; the file is damaged")
         headers.append((f, ds))
     if not headers:
         raise InputError(f"{path} holds no DICOM images, only segmentations or reports; name the DICOM series the "

@@ -82,7 +82,7 @@ def test_a_first_page_without_its_width_is_bad_input(tmp_path):
     assert whole[first_tag:first_tag + 2] == (256).to_bytes(2, "little")
     whole[first_tag] = 124
     (tmp_path / "v.tif").write_bytes(bytes(whole))
-    with pytest.raises(InputError, match="v.tif: its page shapes or series description are damaged"):
+    with pytest.raises(InputError, match="v.tif: its page shapes, tags or series description are damaged"):
         io.read_volume(tmp_path / "v.tif")
 
 

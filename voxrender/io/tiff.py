@@ -53,13 +53,15 @@ def read_tiff(path, progress):
 
 
 def _first_series(tif, path):
-    """The first series tifffile finds in an open file; its detection dividing by a page of size zero, or asserting
-    that pages agree, is a damaged file.
+    """The first series tifffile finds in an open file; its detection dividing by a page of size zero, asserting
+    that pages agree, or looking up a tag a page lacks (a page without its ImageWidth: ``KeyError: 256``) is a
+    damaged file.
     """
     try:
         return tif.series[0]
-    except (ZeroDivisionError, AssertionError):
-        raise InputError(f"cannot read TIFF {path}: its page shapes or series description are damaged") from None
+    except (ZeroDivisionError, AssertionError, KeyError):
+        raise InputError(f"cannot read TIFF {path}: its page shapes, tags or series description are damaged") \
+            from None
 
 
 def _tiff_spacing(path):
