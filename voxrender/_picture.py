@@ -249,13 +249,7 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
         from .marks import draw_marks
 
         rgb = draw_marks(rgb, image.view)
-    rows = None
-    if table is not None:
-        from .labels import label_list
-
-        voxels = segments.label_voxels()               # the labels the object holds (a threshold may empty some)
-        rows = label_list({k: v for k, v in table.items() if voxels.get(k)}, voxels, segments.spacing,
-                          image.stats["label_pixels"], segments.meta.get("label_ml"))
+    rows = None if table is None else _label_rows(segments, table, image.stats["label_pixels"])
     result = Picture(rgb, image, {**seconds, "shade": time.perf_counter() - started}, normal_image, labels, table,
                      rows)
     if options.legend and table is not None:
@@ -263,6 +257,17 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
 
         result.rgb = draw_legend(rgb, [(_caption(v), v["colour"]) for v in result.visible_labels()])
     return result
+
+
+def _label_rows(segments, table, pixels=None):
+    """The rows of the labels the object holds (a threshold may empty some), with their voxels, mL and, of a surface
+    picture, the ``pixels`` each shows (:func:`voxrender.labels.label_list`).
+    """
+    from .labels import label_list
+
+    voxels = segments.label_voxels()
+    return label_list({k: v for k, v in table.items() if voxels.get(k)}, voxels, segments.spacing, pixels,
+                      segments.meta.get("label_ml"))
 
 
 def _marks_apply(options, meta):
@@ -335,11 +340,8 @@ def _projection(segments, view, options, study, progress):
                        seconds["render"])
     table, rows = None, None
     if segments.labels is not None:                     # the labels' list, as a surface picture of them has it
-        from .labels import label_list
-
-        table, voxels = label_table(segments, options.colours), segments.label_voxels()
-        rows = label_list({k: v for k, v in table.items() if voxels.get(k)}, voxels, segments.spacing,
-                          ml=segments.meta.get("label_ml"))
+        table = label_table(segments, options.colours)
+        rows = _label_rows(segments, table)
         if options.legend:
             from .marks import draw_legend
 
