@@ -376,7 +376,7 @@ def _encode_task(item, cache_dir, out_dir=None):
     started = time.perf_counter()
     sheet = item.sheet_path(out_dir) if item.makes_sheet and out_dir is not None else None
     try:
-        make_sheet = sheet is not None and not _is_png(sheet)
+        make_sheet = sheet is not None and _png_size(sheet) is None
         if is_segments_file(item.input):
             if item.needs_grey:
                 raise InputError(f"{item.input} is an encoded object, which keeps no grey values to project; give "
@@ -386,8 +386,6 @@ def _encode_task(item, cache_dir, out_dir=None):
         key = cache_key(item.input, item.read, item.prepare)
         target = Path(cache_dir) / f"{key}.{'vxo' if with_octree else 'vxs'}"
         report = {"input": item.input, "segments": str(target), "seconds": {"load": 0.0, "prepare": 0.0}}
-        if sheet is not None:
-            report["sheet"] = str(sheet)
         grey_kept = not item.needs_grey or all(p.is_file() for p in _study_files(target))
         if _is_intact(target) and grey_kept and not make_sheet:      # a damaged or tampered entry is made again
             return {**report, "cached": True, "key_seconds": time.perf_counter() - started}
@@ -426,17 +424,6 @@ def _study_files(target):
 
     grey, labels, record = saved_files(target.with_suffix(""))
     return [grey, record]
-
-
-def _is_png(path):
-    """Whether ``path`` is a whole, readable PNG."""
-    import imageio.v3 as iio
-
-    try:
-        iio.imread(path, extension=".png")
-    except Exception:  # missing, truncated or not a PNG
-        return False
-    return True
 
 
 def _record_of(entry):
@@ -587,13 +574,19 @@ def _is_done(outputs, size):
     """Whether a view's :class:`~voxrender._picture.Outputs` are finished: its picture a readable PNG of the expected
     ``size = (H, W)``, and each other output there (each is written whole or not at all).
     """
+    return _png_size(outputs.picture) == tuple(size) and all(path.is_file() for path in outputs.wanted().values())
+
+
+def _png_size(path):
+    """``(H, W)`` of the PNG at ``path`` once it decodes whole; ``None`` when it is missing, truncated or no PNG
+    (then it is made again).
+    """
     import imageio.v3 as iio
 
     try:
-        picture_done = tuple(iio.imread(outputs.picture, extension=".png").shape[:2]) == tuple(size)  # decodes it all
-    except Exception:  # missing, truncated or not a PNG: make it again
-        return False
-    return picture_done and all(path.is_file() for path in outputs.wanted().values())
+        return tuple(iio.imread(path, extension=".png").shape[:2])          # decodes it all
+    except Exception:  # missing, truncated or not a PNG
+        return None
 
 
 # ------------------------------------------------------------------ executors
@@ -970,7 +963,7 @@ def _render_all(items, out_dir, jobs, scheduler, cache_dir, progress):
                                                              **{k: kept[k] for k in LABEL_COLUMNS if kept.get(k)})
             else:
                 todo.setdefault(id(item), (item, []))[1].append((index, view))
-        if item.makes_sheet and not _is_png(item.sheet_path(out_dir)):    # its sheet is made by its encode task
+        if item.makes_sheet and _png_size(item.sheet_path(out_dir)) is None:      # its sheet is made by its encode task
             todo.setdefault(id(item), (item, []))
     bar = progress(len(todo) + sum(len(v) for _, v in todo.values())) if progress else None
     pool = _executor(jobs, scheduler)
