@@ -54,8 +54,8 @@ from .view import PRESETS, angles_from_matrix, frame_together, rotation_matrix
 
 SUMMARY_COLUMNS = ["input", "name", "view", "alpha", "beta", "gamma", "method", "output", "status", "error",
                    "labels", "label_volumes", "load_s", "prepare_s", "render_s", "shade_s", "write_s", "total_s",
-                   "stats", "label_colours", "overlaps"]
-LABEL_COLUMNS = ("labels", "label_volumes", "label_colours", "overlaps")    # what a picture done earlier keeps
+                   "stats", "overlaps"]
+LABEL_COLUMNS = ("labels", "label_volumes", "overlaps")    # what a picture done earlier keeps
 
 
 @dataclass(frozen=True)
@@ -530,9 +530,8 @@ def _render_task(item, view, index, segments_path, out_dir, encode_seconds):
         return _summary_row(item, view, outputs.picture, "failed", f"internal error: {type(exc).__name__}: {exc}")
     return _summary_row(item, view, outputs.picture, "ok", stats=json.dumps(result.image.stats, default=float),
                        labels=len(result.image.stats.get("label_pixels", {})) if result.labels is not None else "",
-                       label_volumes=json.dumps([{k: row[k] for k in ("label", "name", "voxels", "ml")}
+                       label_volumes=json.dumps([{k: row[k] for k in ("label", "name", "colour", "voxels", "ml")}
                                                  for row in result.label_rows]) if result.label_rows else "",
-                       label_colours=json.dumps({row["label"]: row["colour"] for row in result.label_rows or ()}),
                        overlaps=json.dumps(encoded.segments.meta.get("overlaps") or []),
                        load_s=encode_seconds.get("load", 0.0), prepare_s=encode_seconds.get("prepare", 0.0),
                        **{f"{stage}_s": value for stage, value in seconds.items()})   # load and prepare: the input's
@@ -1110,9 +1109,6 @@ def _study_rows(items, rows, study_errors, out_dir):
         pictures = [(row["view"], relative(row["output"])) for row in made]
         turning = len(made) > 1 and len(made) == len(own) and all(row["view"].startswith("turn") for row in own)
         labels = next((json.loads(row["label_volumes"]) for row in own if row.get("label_volumes")), [])
-        colours = next((json.loads(row["label_colours"]) for row in own if row.get("label_colours")), {})
-        for entry in labels:
-            entry.setdefault("colour", colours.get(str(entry["label"]), [128, 128, 128]))
         sheet = item.sheet_path(out_dir) if item.makes_sheet else None
         seconds = [row["total_s"] for row in made if isinstance(row.get("total_s"), float)]
         studies.append(StudyRow(item.name, item.input, error, relative(sheet) if sheet and sheet.is_file() else None,
