@@ -227,15 +227,11 @@ def qc_sheet(study, options, views, slices=None, title=None, progress=None):
     ndarray of uint8, (H, W, 3)
     """
     from ._picture import picture
-    from ._render import framing_box
-    from .sheet import sheet
-    from .view import frame_together
+    from .sheet import framed_views, sheet
 
     encoded = study.encoded
     surface = replace(options, projection=None, slab=None, window=None)
-    chosen = [surface.view(*angles) for _, angles in views]
-    if surface.scale is None and surface.fit == "object":
-        chosen = frame_together(chosen, encoded.segments.shape, framing_box(encoded.segments, surface.clip))
+    chosen = framed_views(encoded.segments, surface, views)
     tree = encoded.tree_for(surface.method)
     rows = [[(label, picture(encoded.segments, view, surface, progress, tree).rgb)
              for (label, _), view in zip(views, chosen, strict=True)]]

@@ -45,16 +45,26 @@ def render_sheet(rows, views, progress=None):
     A row of several views frames them with one scale, as a batch does.
     """
     from ._picture import picture
-    from ._render import framing_box
-    from .view import frame_together
 
     pictures, captions = [], []
     for row_label, encoded, options in rows:
-        chosen = [options.view(*angles) for _, angles in views]
-        if options.scale is None and options.fit == "object":
-            chosen = frame_together(chosen, encoded.segments.shape, framing_box(encoded.segments, options.clip))
         tree = encoded.tree_for(options.method)
-        pictures.append([picture(encoded.segments, v, options, progress, tree).rgb for v in chosen])
+        pictures.append([picture(encoded.segments, v, options, progress, tree).rgb
+                         for v in framed_views(encoded.segments, options, views)])
         captions.append([f"{row_label}, {label}" for label, _ in views])
     return sheet(pictures, captions)
 
+
+
+def framed_views(segments, options, views):
+    """The :class:`~voxrender.view.View` of each ``(label, (alpha, beta, gamma))`` of ``views`` as a row of a sheet
+    frames them: without a scale, one that fits the object in every view, each centred (as a batch frames its
+    views), so that the row does not change size from picture to picture.
+    """
+    from ._render import framing_box
+    from .view import frame_together
+
+    chosen = [options.view(*angles) for _, angles in views]
+    if options.scale is None and options.fit == "object":
+        chosen = frame_together(chosen, segments.shape, framing_box(segments, options.clip))
+    return chosen
