@@ -790,13 +790,15 @@ def sheet_command(inputs, output_path, views, view_list, angles, methods, per_la
         joins = _dicom_study(inputs[0], options, dicom)
         study = load_study(inputs[0], read, prepare, progress)
         rgb = qc_sheet(study, render_options, columns, slice_options, title=str(inputs[0]), progress=progress)
-        chose = study.encoded.segments.meta
-        _write_with_dicom(output_path, rgb, dicom, joins, f"QC sheet of {', '.join(v.label for v in chosen)}"
-                          + (f", {render_options.projection}" if render_options.projection else "")
-                          + (f", slices {', '.join(slice_options.planes)}" if slice_options else "")
-                          + (f", threshold {chose['threshold']}" if "threshold" in chose else "")
-                          + (f", the labels of {Path(chose['label_source']).name}" if "label_source" in chose
-                             else ""))                       # its name alone: a local path means nothing in a PACS
+        from .secondary_capture import selection_words
+
+        shows = [f"QC sheet of {', '.join(v.label for v in chosen)}"]
+        if render_options.projection:
+            shows.append(render_options.projection)
+        if slice_options:
+            shows.append(f"slices {', '.join(slice_options.planes)}")
+        shows += selection_words(study.encoded.segments.meta)
+        _write_with_dicom(output_path, rgb, dicom, joins, ", ".join(shows))
         click.echo(f"{output_path}: the QC sheet of {inputs[0]}")
         return
     if dicom is not None:

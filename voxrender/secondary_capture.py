@@ -327,6 +327,17 @@ def describe(result, about=None):
         parts.append(f"view alpha {view.alpha:g} beta {view.beta:g} gamma {view.gamma:g}")
     if projection:
         parts.append(f"projection {projection}")
+    return f"voxrender {__version__}: " + ", ".join(parts + selection_words(meta))
+
+
+def selection_words(meta):
+    """The threshold and labels an object was selected by, from its ``meta``, as parts of a description (a label
+    map by its file's name alone: a local path means nothing in a PACS).
+
+    >>> selection_words({"threshold": 300, "labels": [2], "label_source": "/data/seg.nii.gz"})
+    ['threshold 300', 'labels 2 of seg.nii.gz']
+    """
+    parts = []
     threshold = meta.get("threshold")
     if threshold is not None:                   # a number, or a window in words ("-100:300")
         parts.append(f"threshold {threshold:g}" if isinstance(threshold, (int, float)) else f"threshold {threshold}")
@@ -336,7 +347,7 @@ def describe(result, about=None):
                  else str(label) for label in meta["labels"]]
         source = f" of {Path(meta['label_source']).name}" if meta.get("label_source") else ""
         parts.append(f"labels {', '.join(names)}{source}")
-    return f"voxrender {__version__}: " + ", ".join(parts)
+    return parts
 
 
 def write_dicom_output(path, result, about):
