@@ -170,11 +170,10 @@ def label_rows(study, colours=None):
     show them (:func:`voxrender.labels.label_list`).
     """
     from .labels import label_list
-    from .prep import label_counts
 
     if study.labels is None:
         return []
-    return label_list(study.label_table(colours), label_counts(study.labels), study.volume.spacing)
+    return label_list(study.label_table(colours), study.label_voxels(), study.volume.spacing)
 
 
 def table_picture(rows, width, overlaps=(), line=14):

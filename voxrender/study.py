@@ -92,7 +92,15 @@ class Study:
 
         if self.labels is None:
             return {}
-        return label_colours(sorted(prep.label_counts(self.labels)), self.stored_table, given)
+        return label_colours(sorted(self.label_voxels()), self.stored_table, given)
+
+    def label_voxels(self):
+        """``{label: voxels}`` of the labels the study holds, on its grid (:func:`voxrender.prep.label_counts`),
+        counted once.
+        """
+        if "_label_voxels" not in self.__dict__:
+            self.__dict__["_label_voxels"] = {} if self.labels is None else prep.label_counts(self.labels)
+        return self.__dict__["_label_voxels"]
 
     def save(self, stem):
         """Write the arrays to ``stem.grey.npy`` and ``stem.labels.npy`` and the rest to ``stem.study.json``."""
