@@ -440,14 +440,18 @@ def _write_with_dicom(path, rgb, dicom, joins, what):
         raise
 
 
+def _check_study_from(options, wanted):
+    """``--dicom-study-from`` names the study of a DICOM output: refused when none is ``wanted``."""
+    if options.get("dicom_study_from") and not wanted:
+        raise InputError("names the study a DICOM output joins; give --dicom-out too", parameter="dicom_study_from")
+
+
 def _dicom_study(input_path, options, wanted):
     """``{"dicom_study": DicomStudy}`` of the series a DICOM output joins (``--dicom-study-from``, else the input),
     read before anything is rendered, so that a non-DICOM input is refused first; ``{}`` when none is wanted.
     """
+    _check_study_from(options, wanted)
     if not wanted:
-        if options.get("dicom_study_from"):
-            raise InputError("names the study a DICOM output joins; give --dicom-out too",
-                             parameter="dicom_study_from")
         return {}
     from .secondary_capture import dicom_study
 
@@ -727,8 +731,7 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
                          parameter="per_label")
     if slice_options is not None and not make_sheet:
         raise InputError("slices are drawn on each input's QC sheet; give --sheet too", parameter="planes")
-    if options["dicom_study_from"] and not options.get("dicom"):
-        raise InputError("names the study a DICOM output joins; give --dicom-out too", parameter="dicom_study_from")
+    _check_study_from(options, options.get("dicom"))
     items = batch.items_from(batch.expand_inputs(inputs), batch.read_manifest(manifest) if manifest else [],
                              _read_options(options), _prep_options(options), render_options,
                              batch.parse_views(views, [parse.vector(a, "angles") for a in angles], turntable, axis),
