@@ -58,8 +58,8 @@ from ._shared import (
     some_names,
 )
 
-__all__ = ["Volume", "RawLayout", "Reader", "READERS", "FORMATS", "read_volume", "detect_format", "natural_key",
-           "check_spacing", "patient_affine"]
+__all__ = ["Volume", "RawLayout", "Reader", "READERS", "FORMATS", "read_volume", "open_stack", "detect_format",
+           "natural_key", "check_spacing", "patient_affine"]
 
 # The formats by name, in the order ``format="auto"`` tries them: a folder of DICOM files before one of images (an
 # export may hold a preview picture beside its slices), folders of slices before folders of volume files.
@@ -118,8 +118,8 @@ def detect_format(path, raw=None):
                      parameter="raw")
 
 
-def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, frame=None, orientation=None,
-                reorient=True, progress=None):
+def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, frame=None, level=None,
+                orientation=None, reorient=True, progress=None):
     """Read a slice stack into a :class:`Volume`, in the canonical patient frame.
 
     Parameters
@@ -136,6 +136,8 @@ def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, fra
         SeriesInstanceUID to read when a DICOM folder holds several series.
     frame : int, optional
         The volume to read from a 4-D file (NIfTI, NRRD).
+    level : int, optional
+        The level of a multiscale image (OME-Zarr) to read: 0 the finest (default: the finest level).
     orientation : str, optional
         An orientation code (``"RAS"``, ``"LPI"`` ...) for inputs whose header says none, or to override it.
     reorient : bool
@@ -170,34 +172,86 @@ def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, fra
     if path.is_file() and not path.stat().st_size:       # every reader would say it its own way, or not at all
         raise InputError(f"{path} is an empty file (0 bytes); it was cut off or not written")
     reader = READERS[format]
-    given = {"raw": raw, "series": series, "frame": frame}
+    given = {"raw": raw, "series": series, "frame": frame, "level": level}
     for name, value in given.items():
         if value is not None and name not in reader.options:
             raise InputError(f"{format} input takes no {name}", parameter=name)
     volume = reader.function(path, progress, **{name: given[name] for name in reader.options})
-    volume.meta.setdefault("format", format)
-    volume.meta.setdefault("source", str(path))
     if volume.values.ndim != 3 or min(volume.values.shape) < 1:
         raise InputError(f"{path} does not hold a 3-D stack (shape {volume.values.shape})")
     volume.values = real_numbers(volume.values, path)
+    if _placed(volume, path, format, orientation, reorient):
+        volume.values, volume.spacing, volume.direction, volume.meta["reoriented"] = orient.to_canonical(
+            volume.values, volume.spacing, volume.direction, volume.meta.get("orientation_from", "the header"))
+    if spacing is not None:
+        volume.spacing = check_spacing(spacing)
+        volume.meta["spacing_from"] = "given"
+    return volume
+
+
+def open_stack(path, *, format="auto", raw=None, spacing=None, series=None, frame=None, level=None,
+               orientation=None, reorient=True):
+    """A slice stack in the canonical patient frame, unread: :func:`read_volume`'s stack, read slab by slab.
+
+    Takes :func:`read_volume`'s parameters but ``progress`` (the reading happens later).  Returns a
+    :class:`~voxrender.io._stack.Canonical`, whose ``read_slices(z0, z1)`` reads the canonical slices ``z0`` to
+    ``z1 - 1``; the whole of it equals ``read_volume(...).values``, and its ``spacing``, ``direction`` and ``meta``
+    are the volume's.  A format whose reader cannot read slabs (a DICOM SEG, a folder of masks) is refused.
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> np.save(folder / "v.npy", np.arange(24, dtype=np.int16).reshape(2, 3, 4))
+    >>> stack = open_stack(folder / "v.npy", orientation="LPI")
+    >>> stack.how, stack.read_slices(0, 1)[0, 0].tolist()
+    ('from the far end', [12, 13, 14, 15])
+    """
+    from ._stack import canonical
+
+    path = Path(path)
+    if format != "auto" and format not in READERS:
+        raise InputError(f"unknown format {format!r}; choose one of auto, {', '.join(READERS)}", parameter="format")
+    format = detect_format(path, raw) if format == "auto" else format
+    if not path.exists():
+        raise InputError(f"no such file or folder: {path}")
+    reader = READERS[format]
+    if reader.open is None:
+        raise InputError(f"{format} input is read whole, not slab by slab; read it with read_volume",
+                         parameter="format")
+    given = {"raw": raw, "series": series, "frame": frame, "level": level}
+    for name, value in given.items():
+        if value is not None and name not in reader.options:
+            raise InputError(f"{format} input takes no {name}", parameter=name)
+    stack = reader.open(path, **{name: given[name] for name in reader.options})
+    if len(stack.shape) != 3 or min(stack.shape) < 1:
+        raise InputError(f"{path} does not hold a 3-D stack (shape {stack.shape})")
+    oriented = _placed(stack, path, format, orientation, reorient)
+    stack = canonical(stack, oriented)
+    if spacing is not None:
+        stack.spacing = check_spacing(spacing)
+        stack.meta["spacing_from"] = "given"
+    return stack
+
+
+def _placed(volume, path, format, orientation, reorient):
+    """Fill in ``volume.meta`` (a :class:`Volume` or a :class:`~voxrender.io._stack.Stack`) as both readers do:
+    format, source, orientation, affine and the origin of the canonical grid; return whether to reorient it.
+    """
+    volume.meta.setdefault("format", format)
+    volume.meta.setdefault("source", str(path))
     if orientation is not None:
         volume.direction = orient.direction_of(orientation)
         volume.meta["orientation_from"] = "given"
     if volume.direction is None:
         volume.meta.setdefault("orientation_from", "unknown: the input does not say (stored order kept)")
-    else:
-        volume.meta["orientation"] = orient.code_of(volume.direction)
-        volume.meta["affine"] = _affine(volume.direction, volume.spacing, volume.meta.get("origin")).tolist()
-        if reorient and "origin" in volume.meta:          # the position of the voxel that becomes values[0, 0, 0]
-            corner = orient.canonical_corner(volume.shape, volume.direction)
-            volume.meta["origin"] = (np.asarray(volume.meta["affine"])[:3] @ [*corner, 1.0]).tolist()
-        if reorient:
-            volume.values, volume.spacing, volume.direction, volume.meta["reoriented"] = orient.to_canonical(
-                volume.values, volume.spacing, volume.direction, volume.meta.get("orientation_from", "the header"))
-    if spacing is not None:
-        volume.spacing = check_spacing(spacing)
-        volume.meta["spacing_from"] = "given"
-    return volume
+        return False
+    volume.meta["orientation"] = orient.code_of(volume.direction)
+    volume.meta["affine"] = _affine(volume.direction, volume.spacing, volume.meta.get("origin")).tolist()
+    if reorient and "origin" in volume.meta:          # the position of the voxel that becomes values[0, 0, 0]
+        corner = orient.canonical_corner(volume.shape, volume.direction)
+        volume.meta["origin"] = (np.asarray(volume.meta["affine"])[:3] @ [*corner, 1.0]).tolist()
+    return reorient
 
 
 def patient_affine(volume):

@@ -67,6 +67,9 @@ class Reader:
     sniff_first : bool
         Ask ``sniff`` of a file before any reader's suffixes: for a format whose files bear another's suffix (a
         DICOM SEG is a ``.dcm`` file).
+    open : callable, optional
+        ``open(path, **options) -> Stack``: the stack unread, its slices read a slab at a time
+        (:class:`voxrender.io._stack.Stack`), for stacks larger than memory; ``None`` when the format is read whole.
     """
 
     function: Callable
@@ -74,6 +77,7 @@ class Reader:
     options: tuple = ()
     sniff: Callable | None = None
     sniff_first: bool = False
+    open: Callable | None = None
 
 
 @dataclass(frozen=True)
@@ -257,6 +261,18 @@ def fill_stack(items, read_slice, label, progress, source):
             volume = volume.astype(np.result_type(volume.dtype, data.dtype))
             volume[z] = data
     return volume
+
+
+def slices_at(path, offset, shape, dtype, z0, z1):
+    """Slices ``z0 .. z1 - 1`` of a C-ordered ``shape`` array of ``dtype`` stored at byte ``offset`` of ``path``,
+    read by one call (no memory map, whose touched pages would stay resident), in native byte order.
+    """
+    dtype = np.dtype(dtype)
+    plane = int(shape[1]) * int(shape[2])
+    values = np.fromfile(path, dtype, count=(z1 - z0) * plane, offset=offset + z0 * plane * dtype.itemsize)
+    if values.size != (z1 - z0) * plane:
+        raise InputError(f"{path} ends within slice {z0 + values.size // max(plane, 1)}; the file is truncated")
+    return values.reshape(z1 - z0, *shape[1:]).astype(dtype.newbyteorder("="), copy=False)
 
 
 def real_numbers(values, source):

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from ._shared import Reader, Volume, check_holds, first_line, promised_bytes
+from ._shared import Reader, Volume, check_holds, first_line, promised_bytes, slices_at
+from ._stack import Stack
 
 
 def read_npy(path, progress):
@@ -28,6 +29,24 @@ def read_npy(path, progress):
     return Volume(values, (1.0, 1.0, 1.0), {"spacing_from": "default (.npy carries no spacing)"})
 
 
+def open_npy(path):
+    """The array of a ``.npy`` file as a :class:`~voxrender.io._stack.Stack`: slices read at their offset."""
+    volume = read_npy(path, None)                     # checked and mapped, not read
+    values = volume.values
+    if values.dtype.kind == "b":
+        values = values.view(np.uint8)
+    dtype, offset = values.dtype, values.offset
+    del volume
+    if np.isfortran(values) and min(values.shape) > 1:            # slices are not contiguous: read through a map
+        def read_slices(z0, z1):
+            return np.array(np.load(path, mmap_mode="r", allow_pickle=False)[z0:z1]).view(dtype)
+    else:
+        def read_slices(z0, z1):
+            return slices_at(path, offset, values.shape, dtype, z0, z1)
+    return Stack(values.shape, dtype.newbyteorder("="), read_slices, (1.0, 1.0, 1.0), None,
+                 {"spacing_from": "default (.npy carries no spacing)"})
+
+
 def _header(path):
     """The shape, dtype and data offset a ``.npy`` header promises, by numpy's own header readers (``None`` for the
     dtype of a format version they do not read).
@@ -43,4 +62,4 @@ def _header(path):
         return shape, dtype, f.tell()
 
 
-READER = Reader(read_npy, (".npy",))
+READER = Reader(read_npy, (".npy",), open=open_npy)
