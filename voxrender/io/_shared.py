@@ -265,10 +265,11 @@ def fill_stack(items, read_slice, label, progress, source):
 
 def slices_at(path, offset, shape, dtype, z0, z1):
     """Slices ``z0 .. z1 - 1`` of a C-ordered ``shape`` array of ``dtype`` stored at byte ``offset`` of ``path``,
-    read by one call (no memory map, whose touched pages would stay resident), in native byte order.
+    read by one call (no memory map, whose touched pages would stay resident), in native byte order.  A slice is
+    what follows the first axis (of a 4-D array, a slice of every frame).
     """
     dtype = np.dtype(dtype)
-    plane = int(shape[1]) * int(shape[2])
+    plane = math.prod(int(n) for n in shape[1:])
     values = np.fromfile(path, dtype, count=(z1 - z0) * plane, offset=offset + z0 * plane * dtype.itemsize)
     if values.size != (z1 - z0) * plane:
         raise InputError(f"{path} ends within slice {z0 + values.size // max(plane, 1)}; the file is truncated")
@@ -419,15 +420,22 @@ def inflate(stream, codec, promised, source, longer=False):
         for chunk in _inflated_chunks(stream, codec, promised + 1):
             data += chunk
     except (zlib.error, OSError, EOFError) as exc:          # what zlib and bz2 raise for a garbled stream
-        raise InputError(f"the {codec} stream of {source} is damaged after {len(data):,} bytes: "
-                         f"{first_line(exc)}") from None
+        raise _damaged_stream(codec, source, len(data), exc) from None
     if len(data) > promised and longer:
         del data[promised:]
     if len(data) > promised:
-        raise InputError(f"the {codec} stream of {source} holds more than the {in_words(promised)} of voxels its "
-                         "header promises; the header is damaged")
+        raise _longer_stream(codec, source, promised)
     check_holds(f"the {codec} stream of {source}", promised, len(data))
     return data
+
+
+def _damaged_stream(codec, source, inflated, exc):
+    return InputError(f"the {codec} stream of {source} is damaged after {inflated:,} bytes: {first_line(exc)}")
+
+
+def _longer_stream(codec, source, promised):
+    return InputError(f"the {codec} stream of {source} holds more than the {in_words(promised)} of voxels its "
+                      "header promises; the header is damaged")
 
 
 def read_voxels(stream, shape, dtype, source, codec=None, skip=0, exact=False, longer=False):
@@ -483,3 +491,133 @@ def _inflated_chunks(stream, codec, limit):
         pending = getattr(decompressor, "unconsumed_tail", b"")
         size += len(chunk)
         yield chunk
+
+
+# ---------------------------------------------------------------- slabs, for stacks larger than memory
+# A Stack's slices are read when asked for: raw ones at their offset, by one read; compressed ones from a stream
+# inflated forward by one decompressor kept between reads (so slabs read in order cost one pass), with the same
+# checks of what the header promises as above, made as the stream is read.
+
+
+class InflatedStream:
+    """The bytes the compressed stream of ``path`` (from byte ``offset``, in ``codec``) inflates to, read forward a
+    piece at a time by one decompressor kept between reads: pieces read in increasing order inflate the stream
+    once; a piece before the current position starts it again (correct, slow).
+
+    The stream must hold ``promised`` bytes: one that ends before a piece does, or is damaged, is refused when that
+    piece is read; one holding more (unless ``longer``: the piece is the first part of it) when its last piece is.
+    Between reads the file is open only while a piece is inflated (the open stream is a generator's, closed when
+    the stream ends, starts again, or is dropped).
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "v.z"
+    >>> _ = path.write_bytes(zlib.compress(bytes(range(10))))
+    >>> stream = InflatedStream(path, 0, "zlib", 10)
+    >>> stream.read(2, 3).tolist(), stream.read(8, 2).tolist(), stream.read(0, 1).tolist()
+    ([2, 3, 4], [8, 9], [0])
+    """
+
+    def __init__(self, path, offset, codec, promised, longer=False):
+        self.path, self.offset, self.codec, self.promised, self.longer = path, offset, codec, promised, longer
+        self.position = 0                    # inflated bytes handed out or passed over
+        self._chunks = None                  # the inflated chunks still to come, or None before the first read
+        self._held = memoryview(b"")         # the rest of the last chunk, from ``position``
+
+    def read(self, start, count):
+        """The inflated bytes ``start .. start + count - 1`` as a ``uint8`` array."""
+        if not 0 <= start <= start + count <= self.promised:
+            raise IndexError(f"bytes {start}:{start + count} of {self.promised}")
+        if self._chunks is None or start < self.position:
+            self._restart()
+        out = np.empty(count, np.uint8)
+        try:
+            self._take(start - self.position, None)
+            self._take(count, out)
+            if start + count == self.promised and not self.longer and self._more():
+                raise _longer_stream(self.codec, self.path, self.promised)
+        except InputError:
+            self._chunks.close()             # the next read starts again: no half-consumed state kept
+            self._chunks = None
+            raise
+        return out
+
+    def _restart(self):
+        if self._chunks is not None:
+            self._chunks.close()
+        self._chunks = self._inflated()
+        self.position, self._held = 0, memoryview(b"")
+
+    def _inflated(self):
+        with open(self.path, "rb") as f:
+            f.seek(self.offset)
+            yield from _inflated_chunks(f, self.codec, self.promised + (not self.longer))
+
+    def _next_chunk(self):
+        """The next inflated chunk, or ``None`` where the stream ends."""
+        try:
+            return next(self._chunks, None)
+        except (zlib.error, OSError, EOFError) as exc:          # what zlib and bz2 raise for a garbled stream
+            raise _damaged_stream(self.codec, self.path, self.position, exc) from None
+
+    def _take(self, count, out):
+        """Hand out the next ``count`` inflated bytes into ``out`` (or pass over them: ``None``)."""
+        done = 0
+        while done < count:
+            if not len(self._held):
+                chunk = self._next_chunk()
+                if chunk is None:            # the stream ends before the header's promise
+                    check_holds(f"the {self.codec} stream of {self.path}", self.promised, self.position)
+                self._held = memoryview(chunk)
+                continue
+            size = min(count - done, len(self._held))
+            if out is not None:
+                out[done:done + size] = np.frombuffer(self._held[:size], np.uint8)
+            self._held, self.position, done = self._held[size:], self.position + size, done + size
+
+    def _more(self):
+        """Whether the stream holds bytes past the current position (it is inflated at most one further)."""
+        while not len(self._held):
+            chunk = self._next_chunk()
+            if chunk is None:
+                return False
+            self._held = memoryview(chunk)
+        return True
+
+
+def open_voxels(source, offset, shape, dtype, codec=None, skip=0, exact=False, longer=False, first=0, count=None):
+    """What a :class:`~voxrender.io._stack.Stack` needs to read the slices of a C-ordered array ``shape`` of
+    ``dtype`` (a slice is what follows its first axis) stored in the file ``source``: raw at byte ``offset``, or
+    compressed by ``codec`` (``"gzip"``, ``"bzip2"`` or ``"zlib"``) from byte ``offset`` on, past its first
+    ``skip`` inflated bytes.  The stack is the slices ``first .. first + count - 1`` (a frame of a 4-D file).
+
+    What the header promises is checked as :func:`read_voxels` checks it, but not against the free memory: raw
+    voxels now (``exact``: no more either), a compressed stream as it is read (:class:`InflatedStream`).
+
+    Returns
+    -------
+    read_slices : callable
+        ``read_slices(z0, z1)``: the stack's slices ``z0 .. z1 - 1`` in native byte order.
+    stored_bytes : int
+        The bytes of ``source`` read for the whole stack (of a compressed stream, those up to the stack's end).
+    """
+    dtype = np.dtype(dtype)
+    count = int(shape[0]) - first if count is None else count
+    plane = promised_bytes(shape[1:], dtype)
+    nbytes = promised_bytes(shape, dtype)
+    if codec is None:
+        check_holds(source, nbytes, os.stat(source).st_size - offset, exact=exact)
+
+        def read_slices(z0, z1):
+            return slices_at(source, offset, shape, dtype, first + z0, first + z1)
+
+        return read_slices, count * plane
+    stream = InflatedStream(source, offset, codec, skip + nbytes, longer)
+
+    def read_slices(z0, z1):
+        data = stream.read(skip + (first + z0) * plane, (z1 - z0) * plane)
+        return data.view(dtype).reshape(z1 - z0, *shape[1:]).astype(dtype.newbyteorder("="), copy=False)
+
+    end = skip + (first + count) * plane                 # the stream's compressed bytes are spread evenly, roughly
+    return read_slices, max(1, (os.stat(source).st_size - offset) * end // max(skip + nbytes, 1))

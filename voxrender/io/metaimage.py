@@ -5,6 +5,9 @@ MetaImage has no library here: the header is ``Key = Value`` lines up to ``Eleme
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from pathlib import Path
+
 import numpy as np
 
 from .. import orient
@@ -17,9 +20,11 @@ from ._shared import (
     first_line,
     folder_of_volumes,
     listed,
+    open_voxels,
     promised_bytes,
     read_voxels,
 )
+from ._stack import Stack
 
 SUFFIXES = (".mhd", ".mha")
 
@@ -30,6 +35,41 @@ ELEMENT_TYPES = {"MET_UCHAR": "u1", "MET_CHAR": "i1", "MET_USHORT": "u2", "MET_S
 
 def read_metaimage(path, progress):
     """Read a MetaImage header and its voxels; of a folder, the one MetaImage it holds."""
+    stored, (spacing, meta, direction) = _described(path)
+    with open(stored.source, "rb") as f:
+        f.seek(stored.offset)
+        values = read_voxels(f, stored.shape, stored.dtype, stored.source, stored.codec)
+    return Volume(values.astype(stored.dtype.newbyteorder("="), copy=False), spacing, meta, direction)
+
+
+def open_metaimage(path):
+    """A MetaImage volume as a :class:`~voxrender.io._stack.Stack`: raw slices read at their offset, zlib ones
+    inflated by one stream read forward.
+    """
+    stored, (spacing, meta, direction) = _described(path)
+    read_slices, stored_bytes = open_voxels(stored.source, stored.offset, stored.shape, stored.dtype, stored.codec)
+    return Stack(stored.shape, stored.dtype.newbyteorder("="), read_slices, spacing, direction, meta, stored_bytes,
+                 sequential=stored.codec is not None)
+
+
+@dataclass(frozen=True)
+class _Stored:
+    """Where a MetaImage keeps its voxels: the C-ordered array ``shape`` of ``dtype`` in ``source`` from byte
+    ``offset``, raw (``codec`` None) or ``"zlib"``.
+    """
+
+    source: Path
+    offset: int
+    shape: tuple
+    dtype: np.dtype
+    codec: str | None
+
+
+def _described(path):
+    """Where the voxels of the MetaImage ``path`` (of a folder, the one it holds) are (a :class:`_Stored`),
+    checked, and its volume's spacing, meta and direction: what :func:`read_metaimage` and :func:`open_metaimage`
+    share.
+    """
     if path.is_dir():
         headers = [f for f in files_in(path) if f.suffix.lower() in SUFFIXES]
         if len(headers) != 1:
@@ -84,9 +124,7 @@ def read_metaimage(path, progress):
         offset = max(source.stat().st_size - nbytes, offset)
     elif header_size > 0:
         offset += header_size
-    with open(source, "rb") as f:
-        f.seek(offset)
-        values = read_voxels(f, dims[::-1], dtype, source, "zlib" if compressed else None)
+    stored = _Stored(source, offset, tuple(dims[::-1]), dtype, "zlib" if compressed else None)
     direction, orientation_from = _metaimage_direction(header, path)
     meta = {"spacing_from": "MetaImage header", "orientation_from": orientation_from}
     for key in ("Offset", "Origin", "Position"):
@@ -99,7 +137,7 @@ def read_metaimage(path, progress):
                 meta["origin"] = origin
             break
     meta["source"] = str(path)
-    return Volume(values.astype(dtype.newbyteorder("="), copy=False), check_spacing(spacing, path), meta, direction)
+    return stored, (check_spacing(spacing, path), meta, direction)
 
 
 def _metaimage_direction(header, path):
@@ -129,4 +167,4 @@ def holds_metaimage(path):
     return path.is_dir() and any(f.suffix.lower() in SUFFIXES for f in listed(path))
 
 
-READER = Reader(read_metaimage, SUFFIXES, sniff=holds_metaimage)
+READER = Reader(read_metaimage, SUFFIXES, sniff=holds_metaimage, open=open_metaimage)

@@ -23,32 +23,81 @@ from ._shared import (
     first_line,
     folder_of_volumes,
     inflated_size,
+    open_voxels,
     promised_bytes,
     quiet_log,
     read_voxels,
+    real_numbers,
     volume_files,
 )
+from ._stack import Stack
 
 SUFFIXES = (".nii", ".nii.gz")
 
 
 def read_nifti(path, progress, frame=None):
     """Read a NIfTI volume (of a 4-D file, the one ``frame`` names)."""
-    import nibabel
+    image, frame, placement = _described(path, frame)
+    shape = image.shape
+    if str(path).lower().endswith(".gz") and image.dataobj.slope == 1 and image.dataobj.inter == 0:
+        values = _inflated_voxels(path, image, shape, frame)
+    else:
+        _check_sizes(path, image, shape)
+        try:                                                 # of a 4-D file, nibabel reads only the frame
+            values = np.asanyarray(image.dataobj[..., frame] if len(shape) == 4 else image.dataobj)
+        except _damaged() as exc:                               # a truncated or corrupt file
+            raise InputError(f"cannot read the voxels of {path}: {first_line(exc)}; the file is truncated or "
+                             "damaged") from None
+        values = np.transpose(values, (2, 1, 0))              # NIfTI stores [i, j, k], i fastest: our x, y, z
+    return Volume(values, *placement)
+
+
+def open_nifti(path, frame=None):
+    """A NIfTI volume (of a 4-D file, the one ``frame`` names) as a :class:`~voxrender.io._stack.Stack`: a
+    ``.nii``'s slices read at their offset (i fastest: a slice k is contiguous), a ``.nii.gz``'s inflated by one
+    stream read forward; scaled by scl_slope and scl_inter as :func:`read_nifti` scales them.
+    """
+    image, frame, (spacing, meta, direction) = _described(path, frame)
+    dtype, offset = image.header.get_data_dtype(), int(image.dataobj.offset)
+    volume = tuple(int(n) for n in image.shape[:3][::-1])                 # i fastest: C order [k, j, i]
+    frames = image.shape[3] if len(image.shape) == 4 else 1
+    compressed = str(path).lower().endswith(".gz")
+    read, stored_bytes = open_voxels(path, 0 if compressed else offset, (frames * volume[0],) + volume[1:], dtype,
+                                     "gzip" if compressed else None, skip=offset if compressed else 0, longer=True,
+                                     first=(frame or 0) * volume[0], count=volume[0])
+    scale = _scaling(image.dataobj)
+    scaled_dtype = real_numbers(scale(np.empty((0,), dtype.newbyteorder("="))), path).dtype
+
+    def read_slices(z0, z1):
+        return real_numbers(scale(read(z0, z1)), path)
+
+    return Stack(volume, scaled_dtype, read_slices, spacing, direction, meta, stored_bytes, sequential=compressed)
+
+
+def _damaged():
+    """What nibabel raises for a damaged file, with gzip's for a ``.nii.gz`` and numpy's memory map's for sizes
+    that leave it a negative length.
+    """
     from nibabel.filebasedimages import ImageFileError
     from nibabel.spatialimages import HeaderDataError
 
+    return ImageFileError, HeaderDataError, OSError, EOFError, ValueError, zlib.error, OverflowError
+
+
+def _described(path, frame):
+    """The NIfTI image of ``path`` (its header read, its voxels not), checked, with the ``frame`` to read (of a 4-D
+    file) and the volume's spacing, meta and direction: what :func:`read_nifti` and :func:`open_nifti` share.
+    """
+    import nibabel
+
     if path.is_dir():
         raise folder_of_volumes(path, "NIfTI", SUFFIXES)
-    # what nibabel raises for a damaged file, with gzip's for a .nii.gz and numpy's memory map's for sizes that
-    # leave it a negative length
-    damaged = (ImageFileError, HeaderDataError, OSError, EOFError, ValueError, zlib.error, OverflowError)
     try:
         with quiet_log("nibabel.global"):                    # nibabel logs the header repairs it makes
             image = nibabel.load(str(path))
         header = image.header
         shape = image.shape
-    except damaged as exc:
+    except _damaged() as exc:
         raise InputError(f"cannot read {path} as NIfTI: {first_line(exc)}") from None
     _check_a_volume(path, image)
     if min(shape, default=0) < 1:
@@ -64,16 +113,11 @@ def read_nifti(path, progress, frame=None):
         check_frame(path, frame)
         if len(shape) != 3:
             raise InputError(f"{path} holds a {len(shape)}-D image; voxrender needs a 3-D volume")
-    if str(path).lower().endswith(".gz") and image.dataobj.slope == 1 and image.dataobj.inter == 0:
-        values = _inflated_voxels(path, image, shape, frame)
-    else:
-        _check_sizes(path, image, shape)
-        try:                                                 # of a 4-D file, nibabel reads only the frame
-            values = np.asanyarray(image.dataobj[..., frame] if len(shape) == 4 else image.dataobj)
-        except damaged as exc:                               # a truncated or corrupt file
-            raise InputError(f"cannot read the voxels of {path}: {first_line(exc)}; the file is truncated or "
-                             "damaged") from None
-        values = np.transpose(values, (2, 1, 0))              # NIfTI stores [i, j, k], i fastest: our x, y, z
+    return image, frame, _placement(path, header, pixdim)
+
+
+def _placement(path, header, pixdim):
+    """The spacing, meta and direction of a NIfTI volume, from its sform, else its qform, else ``pixdim``."""
     affine, code = header.get_sform(coded=True)
     source = "NIfTI sform"
     if not code:
@@ -91,7 +135,7 @@ def read_nifti(path, progress, frame=None):
                     origin=orient.ras_to_lps(np.asarray(affine, dtype=float)[:3, 3]).tolist())
     else:
         warnings.warn(f"{path} has neither sform nor qform; its orientation is unknown (give it with an "
-                      "orientation code if the presets should hold)", stacklevel=2)
+                      "orientation code if the presets should hold)", stacklevel=4)
         direction, spacing = None, tuple(pixdim)
         meta["orientation_from"] = "unknown: NIfTI without sform or qform"
     if header.get("scl_slope") is not None and np.isfinite(header["scl_slope"]) and header["scl_slope"] not in (0, 1):
@@ -99,7 +143,23 @@ def read_nifti(path, progress, frame=None):
     table = _label_table(path, header)
     if table:
         meta["label_table"] = table
-    return Volume(values, check_spacing(spacing, path), meta, direction)
+    return check_spacing(spacing, path), meta, direction
+
+
+def _scaling(proxy):
+    """The function that scales stored voxels as nibabel's array proxy ``proxy`` scales them when it reads them
+    (``ArrayProxy._get_scaled``): the same type, the same values, whatever part of the volume it is given.
+    """
+    from nibabel.volumeutils import apply_read_scaling
+
+    slope, inter = np.asanyarray(proxy.slope), np.asanyarray(proxy.inter)
+    if np.can_cast(inter, slope.dtype):
+        inter = inter.astype(slope.dtype)
+
+    def scale(values):
+        return apply_read_scaling(values, slope, inter)
+
+    return scale
 
 
 CARET = 30        # the extension code of a Connectome Workbench label table, whose colours are the user's
@@ -194,4 +254,4 @@ def holds_nifti(path):
     return path.is_dir() and bool(volume_files(path, SUFFIXES))
 
 
-READER = Reader(read_nifti, SUFFIXES, options=("frame",), sniff=holds_nifti)
+READER = Reader(read_nifti, SUFFIXES, options=("frame",), sniff=holds_nifti, open=open_nifti)

@@ -10,6 +10,8 @@ import contextlib
 import os
 import re
 import zlib
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -23,10 +25,12 @@ from ._shared import (
     check_spacing,
     first_line,
     folder_of_volumes,
+    open_voxels,
     promised_bytes,
     read_voxels,
     volume_files,
 )
+from ._stack import Stack
 
 SUFFIXES = (".nrrd", ".nhdr", ".seg.nrrd")
 # NRRD's names of the encodings read here (the others, text, by pynrrd), and the axis kinds of a spatial volume
@@ -36,37 +40,128 @@ SPATIAL_KINDS = {"domain", "space", "time", "none", "???"}
 
 def read_nrrd(path, progress, frame=None):
     """Read a NRRD volume (of a 4-D file, the one ``frame`` names)."""
+    stored, placement = _described(path, frame)
+    with _bad_input(path):
+        if stored.codec == "text":                          # what pynrrd reads is no bigger than the file
+            check_fits(stored.shape, stored.dtype, path)
+            with open(path, "rb") as f:
+                f.seek(stored.offset)
+                values = stored.header_read_data(f)
+        else:
+            with open(stored.source, "rb") as data:
+                data.seek(stored.offset)
+                values = read_voxels(data, stored.shape, stored.dtype, stored.source, stored.codec,
+                                     skip=stored.skip, exact=stored.codec is None)
+    if stored.frame_axis is not None:
+        values = np.take(values, stored.frame, axis=stored.frame_axis)
+    return Volume(values, *placement)
+
+
+def open_nrrd(path, frame=None):
+    """A NRRD volume (of a 4-D file, the one ``frame`` names) as a :class:`~voxrender.io._stack.Stack`: raw slices
+    read at their offset, gzip or bzip2 ones inflated by one stream read forward.
+
+    A frame whose volumes follow each other (the frame axis the slowest) is read alone; of any other 4-D layout,
+    each slab is read with the slices of every frame, and the frame taken from it (memory: the frames' count
+    times the slab's).  Text encodings are read whole, as :func:`read_nrrd` reads them, and served from memory.
+    """
+    stored, (spacing, meta, direction) = _described(path, frame)
+    if stored.codec == "text":
+        values = read_nrrd(path, None, frame).values
+
+        def read_slices(z0, z1):
+            return values[z0:z1].astype(values.dtype.newbyteorder("="))
+
+        return Stack(values.shape, values.dtype.newbyteorder("="), read_slices, spacing, direction, meta)
+    shape, first, count, volume = stored.shape, 0, None, stored.shape
+    if stored.frame_axis == 0:                                # frame after frame: one frame's slices
+        shape, volume = (shape[0] * shape[1], *shape[2:]), shape[1:]
+        first, count = stored.frame * volume[0], volume[0]
+    elif stored.frame_axis is not None:                       # the frames within each slice: a slab of them all
+        volume = tuple(n for axis, n in enumerate(shape) if axis != stored.frame_axis)
+    with _bad_input(path):
+        read, stored_bytes = open_voxels(stored.source, stored.offset, shape, stored.dtype, stored.codec,
+                                         skip=stored.skip, exact=stored.codec is None, first=first, count=count)
+
+    def read_slices(z0, z1):
+        slab = read(z0, z1)
+        return slab if stored.frame_axis in (None, 0) else np.take(slab, stored.frame, axis=stored.frame_axis)
+
+    return Stack(volume, stored.dtype.newbyteorder("="), read_slices, spacing, direction, meta, stored_bytes,
+                 sequential=stored.codec is not None)
+
+
+@dataclass
+class _Stored:
+    """Where and how a NRRD file keeps its voxels: the C-ordered array ``shape`` of ``dtype`` in ``source`` from
+    byte ``offset``, raw (``codec`` None), ``"gzip"`` or ``"bzip2"`` past ``skip`` inflated bytes, or ``"text"``
+    (read by pynrrd, from ``offset`` of the header's file); of a 4-D file, the ``frame`` to take along numpy axis
+    ``frame_axis``.
+    """
+
+    header: dict
+    source: Path
+    offset: int
+    shape: tuple
+    dtype: np.dtype
+    codec: str | None
+    skip: int = 0
+    frame: int | None = None
+    frame_axis: int | None = None
+
+    def header_read_data(self, f):
+        """The voxels of a text encoding, read by pynrrd from ``f`` (at ``offset``) or its data file."""
+        import nrrd
+
+        return nrrd.read_data(self.header, f, str(self.source), index_order="C")
+
+
+@contextlib.contextmanager
+def _bad_input(path):
+    """Turn pynrrd's errors, and those of its decoders (zlib, bz2: OSError), into bad input naming ``path`` (an
+    empty file is StopIteration to pynrrd; an empty vector, IndexError).
+    """
     import nrrd
 
-    if path.is_dir():
-        raise folder_of_volumes(path, "NRRD", SUFFIXES)
-    try:               # pynrrd's errors, and those of its decoders (zlib, bz2: OSError); an empty file, StopIteration
-        with open(path, "rb") as f:
-            header = nrrd.read_header(f)
-            values = _read_voxels(path, f, header)
+    try:
+        yield
     except InputError:
         raise
     except FileNotFoundError as exc:
         raise InputError(f"{path}: its data file {exc.filename or ''} is missing") from None
     except (nrrd.NRRDError, OSError, EOFError, ValueError, KeyError, TypeError, IndexError, zlib.error,
-            StopIteration) as exc:                  # IndexError: pynrrd parsing an empty vector
+            StopIteration) as exc:
         raise InputError(f"cannot read {path} as NRRD: {first_line(exc)}") from None
-    directions = _space_directions(path, header, values.ndim)
+
+
+def _described(path, frame):
+    """Where the voxels of the NRRD file ``path`` are (a :class:`_Stored`), checked, and its volume's spacing, meta
+    and direction: what :func:`read_nrrd` and :func:`open_nrrd` share.
+    """
+    import nrrd
+
+    if path.is_dir():
+        raise folder_of_volumes(path, "NRRD", SUFFIXES)
+    with _bad_input(path), open(path, "rb") as f:
+        header = nrrd.read_header(f)
+        stored = _stored(path, f, header)
+    ndim = len(stored.shape)
+    directions = _space_directions(path, header, ndim)
     axes = [0, 1, 2]                                        # the header's axes (fastest first) of the volume read
-    if values.ndim == 4:
+    if ndim == 4:
         # the non-spatial axis: 'none' in space directions
         spatial = [d is not None for d in (directions if directions is not None else [None] * 4)]
         if sum(spatial) != 3:
             raise InputError(f"{path} is 4-D without three spatial axes; voxrender needs a 3-D volume")
         extra = spatial.index(False)                        # in NRRD's axis order (fastest first)
-        frame = check_frame(path, frame, values.shape[3 - extra])
-        values = np.take(values, frame, axis=3 - extra)
+        stored.frame_axis = 3 - extra
+        stored.frame = frame = check_frame(path, frame, stored.shape[3 - extra])
         directions = [d for d, s in zip(directions, spatial, strict=True) if s]
         axes = [k for k in range(4) if k != extra]
     else:
         check_frame(path, frame)
-    if values.ndim != 3:
-        raise InputError(f"{path} holds a {values.ndim}-D array (a table or a picture), not a 3-D spatial volume")
+    if ndim - (ndim == 4) != 3:
+        raise InputError(f"{path} holds a {ndim}-D array (a table or a picture), not a 3-D spatial volume")
     if directions is not None and any(d is None for d in directions):
         axis = axes[[d is None for d in directions].index(True)]
         raise InputError(f"{path}: its axis {axis} has no space direction ({_kind(header, axis)}), so it holds "
@@ -75,6 +170,13 @@ def read_nrrd(path, progress, frame=None):
     if non_spatial:
         raise InputError(f"{path}: its axis {non_spatial[0]} is of kind {_kind(header, non_spatial[0])!r}, so it "
                          "is not a 3-D spatial volume")
+    return stored, _placement(path, header, directions, frame)
+
+
+def _placement(path, header, directions, frame):
+    """The spacing, meta and direction of a NRRD volume, from its space and space directions (of the volume's
+    three axes), else its spacings.
+    """
     meta = {"spacing_from": "NRRD header"}
     space = str(header.get("space", "")).lower()
     sides = ("left", "right", "posterior", "anterior", "superior", "inferior")
@@ -110,14 +212,13 @@ def read_nrrd(path, progress, frame=None):
     table = _segment_table(header, 0 if frame is None else frame)
     if table:
         meta["label_table"] = table
-    return Volume(values, check_spacing(spacing, path), meta, direction)
+    return check_spacing(spacing, path), meta, direction
 
 
-def _read_voxels(path, f, header):
-    """The voxels ``header`` promises, read from ``f`` (just past the header) or its data file: raw, gzip or bzip2
-    are read here, with their sizes checked before allocating; other encodings (text) by pynrrd.
+def _stored(path, f, header):
+    """Where the voxels ``header`` promises are (a :class:`_Stored`): in ``f`` (just past the header) or its data
+    file; raw, gzip or bzip2 are read here, other encodings (text) by pynrrd.
     """
-    import nrrd
     from nrrd.reader import _determine_datatype  # pynrrd's own table of NRRD types
 
     missing = [key for key in ("dimension", "type", "encoding", "sizes") if key not in header]
@@ -135,9 +236,8 @@ def _read_voxels(path, f, header):
     if line_skip < 0 or byte_skip < -1:
         raise InputError(f"{path}: its line skip {line_skip} or byte skip {byte_skip} is negative; the header is "
                          "damaged")
-    if encoding is None:                                    # text: what pynrrd reads is no bigger than the file
-        check_fits(sizes, dtype, path)
-        return nrrd.read_data(header, f, str(path), index_order="C")
+    if encoding is None:                                    # pynrrd skips lines and bytes itself
+        return _Stored(header, path, f.tell(), tuple(sizes[::-1]), dtype, "text")
     if byte_skip == -1 and encoding != "raw":
         raise InputError(f"{path}: byte skip -1 (the voxels at the end) with {encoding} data is not supported; "
                          "give the data uncompressed")
@@ -145,11 +245,12 @@ def _read_voxels(path, f, header):
     with open(source, "rb") if data_file is not None else contextlib.nullcontext(f) as data:
         for _ in range(line_skip):
             data.readline()
+        offset = data.tell()
         if encoding == "raw":                                # byte skip -1: the voxels end the file
-            held = os.fstat(data.fileno()).st_size - data.tell()
-            data.seek(max(held - promised_bytes(sizes, dtype), 0) if byte_skip == -1 else byte_skip, os.SEEK_CUR)
-            return read_voxels(data, sizes[::-1], dtype, source, exact=True)
-        return read_voxels(data, sizes[::-1], dtype, source, encoding, skip=byte_skip)
+            held = os.fstat(data.fileno()).st_size - offset
+            offset += max(held - promised_bytes(sizes, dtype), 0) if byte_skip == -1 else byte_skip
+            return _Stored(header, source, offset, tuple(sizes[::-1]), dtype, None)
+    return _Stored(header, source, offset, tuple(sizes[::-1]), dtype, encoding, skip=byte_skip)
 
 
 def _kind(header, axis):
@@ -209,4 +310,4 @@ def holds_nrrd(path):
     return path.is_dir() and bool(volume_files(path, SUFFIXES))
 
 
-READER = Reader(read_nrrd, SUFFIXES, options=("frame",), sniff=holds_nrrd)
+READER = Reader(read_nrrd, SUFFIXES, options=("frame",), sniff=holds_nrrd, open=open_nrrd)
