@@ -113,11 +113,13 @@ def _described(path, frame):
         check_frame(path, frame)
         if len(shape) != 3:
             raise InputError(f"{path} holds a {len(shape)}-D image; voxrender needs a 3-D volume")
-    return image, frame, _placement(path, header, pixdim)
+    return image, frame, _placement(path, header, pixdim, image.dataobj.slope, image.dataobj.inter)
 
 
-def _placement(path, header, pixdim):
-    """The spacing, meta and direction of a NIfTI volume, from its sform, else its qform, else ``pixdim``."""
+def _placement(path, header, pixdim, slope, inter):
+    """The spacing, meta and direction of a NIfTI volume, from its sform, else its qform, else ``pixdim`` (and
+    in ``meta``, its scaling by ``slope`` and ``inter``, when it is scaled).
+    """
     affine, code = header.get_sform(coded=True)
     source = "NIfTI sform"
     if not code:
@@ -138,8 +140,8 @@ def _placement(path, header, pixdim):
                       "orientation code if the presets should hold)", stacklevel=4)
         direction, spacing = None, tuple(pixdim)
         meta["orientation_from"] = "unknown: NIfTI without sform or qform"
-    if header.get("scl_slope") is not None and np.isfinite(header["scl_slope"]) and header["scl_slope"] not in (0, 1):
-        meta["scaled"] = f"scl_slope {float(header['scl_slope']):g}, scl_inter {float(header['scl_inter']):g}"
+    if (slope, inter) != (1, 0):         # nibabel's (the loaded header's scl_slope and scl_inter are NaN)
+        meta["scaled"] = f"scl_slope {float(slope):g}, scl_inter {float(inter):g}"
     table = _label_table(path, header)
     if table:
         meta["label_table"] = table
