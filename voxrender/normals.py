@@ -14,6 +14,7 @@ gets the same smooth normals; a hit on a face the object was cut by takes that f
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -103,9 +104,11 @@ def surface_band(mask):
     return band
 
 
-def band_voxels(mask, slices=16):
+def band_voxels(mask, slices=16, own=None):
     """The ``(z, y, x)`` coordinates of the voxels of :func:`surface_band`, found a few slices at a time (each
     with the slice before and after it) so that no whole-volume array is made: new memory is slow to touch.
+    With ``own = (first, last)``, only those of slices ``first .. last - 1``: ``mask`` is then a slab of a larger
+    mask with a slice of it on either side (where the larger one has it), whose own band is not kept.
 
     >>> z, y, x = band_voxels(np.pad(np.ones((3, 3, 3), bool), 1), slices=2)
     >>> len(z), (int(z.min()), int(z.max()))
@@ -113,9 +116,10 @@ def band_voxels(mask, slices=16):
     """
     mask = np.asarray(mask, dtype=bool)
     nz = mask.shape[0]
+    begin, end = own or (0, nz)
     found = []
-    for first in range(0, nz, slices):
-        last = min(first + slices, nz)
+    for first in range(begin, end, slices):
+        last = min(first + slices, end)
         below, above = max(first - 1, 0), min(last + 1, nz)
         # the extra slices only show their neighbours to the chosen ones: their own band (which counts the
         # block's ends as the volume's edge) is not kept
@@ -213,7 +217,7 @@ class SurfaceNormals:
             return np.where(length > 1e-12, total / length, np.nan).astype(np.float32)
 
 
-def surface_normals(mask, sample=None, source=None):
+def surface_normals(mask, sample=None, source=None, *, own=None, offset=0, shape=None):
     """The outward normals of ``mask``'s surface band.
 
     Parameters
@@ -226,6 +230,11 @@ def surface_normals(mask, sample=None, source=None):
         its nearest voxel's.  Default: the mask itself, as 0 and 1 (the binary fallback).
     source : str, optional
         What the normals came from, for the record (default: "grey values", or "the binary mask").
+    own, offset, shape : optional
+        For a slab of a larger mask (a stack read a slab at a time): the normals of its slices ``own = (first,
+        last)`` only, ``mask`` holding beside them as many slices of the larger mask as the stencil reaches (where
+        it has them; ``sample``'s points are the slab's); ``offset``, the larger mask's slice that is the slab's
+        first; ``shape``, the larger mask's.  The normals of the slabs, one after another, are the larger mask's.
 
     Returns
     -------
@@ -239,11 +248,11 @@ def surface_normals(mask, sample=None, source=None):
     [[1.0, 0.0, 0.0]]
     """
     mask = np.asarray(mask, dtype=bool)
-    nz, ny, nx = mask.shape
+    nz, ny, nx = shape = tuple(shape or mask.shape)
     if sample is None:
         sample, source = mask, source or "the binary mask"
     offsets, kernels = GAUSSIAN if source == "the binary mask" else SOBEL
-    z, y, x = band_voxels(mask)
+    z, y, x = band_voxels(mask, own=own)
     if callable(sample):
         gradient = _gradient_of_samples(sample, np.stack([x, y, z], axis=1), offsets, kernels)
     else:
@@ -252,8 +261,13 @@ def surface_normals(mask, sample=None, source=None):
     length = np.linalg.norm(gradient, axis=1)
     keep = length > 1e-9
     outward = -gradient[keep] / length[keep, None]                    # the object is where values are high
-    index = ((z * ny + y) * nx + x)[keep].astype(np.int32 if mask.size < 2 ** 30 else np.int64)
-    return SurfaceNormals((nz, ny, nx), index, octahedral_encode(outward), source or "grey values")
+    index = (((z + offset) * ny + y) * nx + x)[keep].astype(np.int32 if math.prod(shape) < 2 ** 30 else np.int64)
+    return SurfaceNormals(shape, index, octahedral_encode(outward), source or "grey values")
+
+
+def stencil_radius(source):
+    """How many slices on either side the normals of a slab need (:func:`surface_normals`'s ``own``)."""
+    return 2 if source == "the binary mask" else 1
 
 
 def _gradient_of_samples(sample, centres, offsets, kernels):

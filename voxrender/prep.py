@@ -106,8 +106,9 @@ def resampled_shape(shape, spacing, voxel):
     return tuple(_grid_count(n, s, voxel) for n, s in zip(shape, spacing[::-1], strict=True))
 
 
-def _resample_slices(values, spacing, voxel, progress=None):
-    """Yield the slices of ``values`` resampled to cubic voxels of ``voxel`` mm (float32).
+def _resample_slices(values, spacing, voxel, progress=None, ks=None):
+    """Yield the slices of ``values`` resampled to cubic voxels of ``voxel`` mm (float32): all of them, or those
+    numbered ``ks`` (a range), for which ``values[i]`` is asked only of the slices around them (a slab).
 
     Linear interpolation: in-plane by :func:`skimage.transform.warp`, across slices
     by blending the two neighbouring slices.  Only two in-plane slices are kept.
@@ -133,15 +134,24 @@ def _resample_slices(values, spacing, voxel, progress=None):
             cache[i] = data
         return cache[i]
 
-    ks = range(out_z)
-    for k in (progress(ks, out_z, "resampling") if progress else ks):
-        position = k * voxel / sz
-        i = min(int(math.floor(position + 1e-9)), nz - 1)
-        weight = position - i
+    ks = range(out_z) if ks is None else ks
+    for k in (progress(ks, len(ks), "resampling") if progress else ks):
+        i, weight = input_slice(k, voxel, sz, nz)
         if weight < 1e-6 or i == nz - 1:
             yield plane(i)
         else:
             yield (1 - weight) * plane(i) + weight * plane(i + 1)
+
+
+def input_slice(k, voxel, spacing_z, nz):
+    """The input slice ``i`` at or below slice ``k`` of the cubic grid, and the weight of slice ``i + 1``.
+
+    >>> input_slice(3, 0.5, 1.0, 10)
+    (1, 0.5)
+    """
+    position = k * voxel / spacing_z
+    i = min(int(math.floor(position + 1e-9)), nz - 1)
+    return i, position - i
 
 
 def resample(values, spacing, voxel):
@@ -164,27 +174,47 @@ def otsu_threshold(values, padding=None):
     >>> float(otsu_threshold(np.array([-3024, -3024, -1000, -1000, 40, 40]), padding=-3024)) > -1000
     True
     """
-    from skimage.filters import threshold_otsu
-
     values = np.asarray(values)
     low, high, whole = _kept_range(values, padding)
-    besides = "" if padding is None else f" (besides the padding, {padding:g})"
-    if low is None:
-        raise InputError(f"every value is NaN or infinite{besides}, so there is nothing to threshold")
-    if low == high:
-        raise InputError(f"every value is {low:g}{besides}, so there is no threshold to find; give one at or below "
-                         f"{low:g} to keep every voxel")
+    check_range(low, high, padding)
     if whole:                                   # every value counts: one histogram, no copy
         counts, edges = np.histogram(values, bins=1024, range=(low, high))
     else:
-        edges = np.histogram_bin_edges([], bins=1024, range=(low, high))
+        edges = otsu_bins(low, high)
         counts = sum(np.histogram(part, bins=edges)[0] for part in _kept_parts(values, padding))
+    return otsu_of_histogram(counts, edges)
+
+
+def otsu_bins(low, high):
+    """The edges of the 1024 bins :func:`otsu_threshold` counts values in, from the lowest to the highest."""
+    return np.histogram_bin_edges([], bins=1024, range=(low, high))
+
+
+def otsu_of_histogram(counts, edges):
+    """Otsu's threshold of the values counted in bins (:func:`otsu_bins`): :func:`otsu_threshold` of values that
+    were counted a slab at a time.
+
+    >>> otsu_of_histogram(np.array([3, 0, 0, 3]), np.array([0.0, 2.5, 5.0, 7.5, 10.0]))
+    5.0
+    """
+    from skimage.filters import threshold_otsu
+
     centres = (edges[:-1] + edges[1:]) / 2
     threshold = float(threshold_otsu(hist=(counts, centres)))
     # Between two separated classes every empty bin splits them equally well; take the middle of the gap.
     occupied = centres[counts > 0]
     below, above = occupied[occupied <= threshold], occupied[occupied > threshold]
     return float((below[-1] + above[0]) / 2) if len(below) and len(above) else threshold
+
+
+def check_range(low, high, padding=None):
+    """Refuse values between ``low`` and ``high`` (:func:`value_range`) that hold no threshold to find."""
+    besides = "" if padding is None else f" (besides the padding, {padding:g})"
+    if low is None:
+        raise InputError(f"every value is NaN or infinite{besides}, so there is nothing to threshold")
+    if low == high:
+        raise InputError(f"every value is {low:g}{besides}, so there is no threshold to find; give one at or below "
+                         f"{low:g} to keep every voxel")
 
 
 def value_range(values, padding=None):
@@ -284,6 +314,49 @@ def _blocks(values, voxels=1 << 24):
     return (values[start:start + step] for start in range(0, len(values), step))
 
 
+def bin_slices(values, n):
+    """The mean of every ``n`` x ``n`` x ``n`` block of ``values`` ``[z, y, x]`` (float32), one binned slice at a
+    time, so that a slab binned alone gives the slices the whole volume would (a remainder of fewer than ``n``
+    voxels along an axis is dropped).
+
+    >>> bin_slices(np.arange(16.0).reshape(2, 2, 4), 2).tolist()
+    [[[6.5, 8.5]]]
+    """
+    nz, ny, nx = (size // n for size in values.shape)
+    out = np.empty((nz, ny, nx), np.float32)
+    for k in range(nz):
+        block = np.asarray(values[k * n:(k + 1) * n, :ny * n, :nx * n])
+        wide = np.int64 if block.dtype.kind in "uib" else np.float64       # integers sum exactly
+        out[k] = block.reshape(n, ny, n, nx, n).sum(axis=(0, 2, 4), dtype=wide) / n ** 3
+    return out
+
+
+def binned(volume, n, region=None):
+    """The ``volume`` cropped to ``region`` and binned by ``n`` (:func:`bin_slices`), with its spacing scaled: a
+    preview of a stack too large to render at its own resolution.
+
+    >>> from voxrender.io import Volume
+    >>> v = binned(Volume(np.ones((4, 6, 8), np.uint16), (0.5, 0.5, 1.0)), 2)
+    >>> v.shape, v.spacing
+    ((2, 3, 4), (1.0, 1.0, 2.0))
+    """
+    from dataclasses import replace
+
+    check_bin(n, crop(volume.values, region).shape)
+    values = bin_slices(crop(volume.values, region), n)
+    return replace(volume, values=values, spacing=tuple(float(s) * n for s in volume.spacing),
+                   meta={**volume.meta, "binned": n})
+
+
+def check_bin(n, shape):
+    """Refuse a binning factor that is not a whole number from 1, or that leaves no voxel of ``shape``."""
+    if not (isinstance(n, (int, np.integer)) and n >= 1):
+        raise InputError(f"{n!r} must be a whole number of voxels, 1 or more", parameter="bin")
+    if min(shape) < n:
+        raise InputError(f"binning by {n} leaves no voxel of a volume {' x '.join(map(str, shape[::-1]))} voxels "
+                         "(x, y, z) large; bin by less", parameter="bin")
+
+
 _crop = crop  # binarize's parameter of the same name hides the function
 
 
@@ -377,15 +450,22 @@ def _windowed(values, spacing, windows, voxel, resample, progress):
     voxel, out_shape = cubic_grid(values.shape, spacing, voxel, resample)
     planes = _resample_slices(values, spacing, voxel, progress) if out_shape is not None else values
     labels = np.empty(out_shape or values.shape, np.uint8)
-    # NaN is in no window, but inf is in an open one: a float volume holding either is cleaned slice by slice
     every_value_finite = values.dtype.kind not in "fc" or _kept_range(values, None)[2]
     for layer, plane in zip(labels, planes, strict=True):
-        windows[0].select(plane, out=layer.view(bool))     # writes 0 and 1
-        for number, window in enumerate(windows[1:], 2):
-            layer[window.select(plane)] = number
-        if not every_value_finite:                      # and what resampling spread them to
-            layer[~np.isfinite(plane)] = 0
+        select_layer(plane, windows, layer, every_value_finite)
     return labels, voxel, (voxel,) * 3 if out_shape is not None else tuple(float(s) for s in spacing)
+
+
+def select_layer(plane, windows, layer, every_value_finite=False):
+    """Write into ``layer`` (uint8) the number (1, 2, ...) of the last of ``windows`` holding each value of
+    ``plane``, 0 for none: one slice of the object's grid.
+    """
+    windows[0].select(plane, out=layer.view(bool))     # writes 0 and 1
+    for number, window in enumerate(windows[1:], 2):
+        layer[window.select(plane)] = number
+    # NaN is in no window, but inf is in an open one (and resampling spreads both): such voxels are outside
+    if not every_value_finite and plane.dtype.kind in "fc":
+        layer[~np.isfinite(plane)] = 0
 
 
 def cubic_grid(shape, spacing, voxel, resample):

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -291,18 +292,47 @@ def save(segments, path, sections=None):
         arrays.update(normal_index=np.asarray(index, f"<i{index.dtype.itemsize}"),
                       normal_packed=np.asarray(segments.normals.packed, "<i2").ravel())
         meta["normals_from"] = segments.normals.source
+    write_sections(path, segments.shape, segments.spacing, meta, arrays)
+
+
+@dataclass(frozen=True)
+class Spilled:
+    """An array too large to hold, kept as files of its raw bytes written one after another (the parts a slab
+    at a time made): ``count`` values of ``dtype`` in all.  :func:`write_sections` copies them into the file.
+    """
+
+    files: tuple
+    count: int
+    dtype: np.dtype
+
+    @property
+    def nbytes(self):
+        """The bytes of the array."""
+        return self.count * np.dtype(self.dtype).itemsize
+
+
+def write_sections(path, shape, spacing, meta, arrays):
+    """Write a ``.vxs`` file (atomically): its header and ``arrays`` (``{name: ndarray or Spilled}``, little-endian),
+    each at a 64-byte aligned offset.  :func:`save` writes an object held in memory, :mod:`voxrender.stream` one
+    made a slab at a time; both give the same bytes for the same object.
+    """
     layout, position = {}, 0
     for name, array in arrays.items():
-        layout[name] = {"offset": position, "count": int(array.size), "dtype": array.dtype.str}
+        count = array.count if isinstance(array, Spilled) else int(array.size)
+        layout[name] = {"offset": position, "count": count, "dtype": np.dtype(array.dtype).str}
         position += -(-array.nbytes // _ALIGN) * _ALIGN
-    header = json.dumps({"shape": list(segments.shape), "spacing": list(segments.spacing),
-                         "meta": meta, "arrays": layout}).encode()
+    header = json.dumps({"shape": list(shape), "spacing": list(spacing), "meta": meta, "arrays": layout}).encode()
     data_start = -(-(len(MAGIC) + 8 + len(header)) // _ALIGN) * _ALIGN
     with atomic_output(path) as tmp, open(tmp, "wb") as f:
         f.write(MAGIC + np.uint64(len(header)).tobytes() + header)
         for name, array in arrays.items():
             f.seek(data_start + layout[name]["offset"])
-            f.write(np.ascontiguousarray(array).data)    # no copy of the bytes
+            if isinstance(array, Spilled):
+                for part in array.files:
+                    with open(part, "rb") as source:
+                        shutil.copyfileobj(source, f, 16 << 20)
+            else:
+                f.write(np.ascontiguousarray(array).data)    # no copy of the bytes
         f.truncate(data_start + position)
 
 
