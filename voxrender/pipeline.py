@@ -31,12 +31,13 @@ class ReadOptions:
     frame: int | None = None
     orientation: str | None = None
     reorient: bool = True
+    level: int | None = None
 
     def read(self, path, progress=None):
         """The :class:`~voxrender.io.Volume` in ``path``, read as these options say."""
         return io.read_volume(path, format=self.format, raw=self.raw, spacing=self.spacing, series=self.series,
-                              frame=self.frame, orientation=self.orientation, reorient=self.reorient,
-                              progress=progress)
+                              frame=self.frame, level=self.level, orientation=self.orientation,
+                              reorient=self.reorient, progress=progress)
 
 
 @dataclass(frozen=True)
@@ -57,12 +58,15 @@ class PrepOptions:
     min_object: int = 0
     labels: prep.LabelSelection | None = None
     tissues: tuple = ()        # (name, Window, (r, g, b)) each: several tissues of a CT, each a label
+    bin: int = 1               # mean binning of bin x bin x bin voxels, after the crop: a preview of a huge stack
 
     def __post_init__(self):
         if self.voxel is not None and not (self.voxel > 0 and math.isfinite(self.voxel)):
             raise InputError(f"{self.voxel} must be a positive size in mm", parameter="voxel")
         if self.min_object < 0:
             raise InputError(f"{self.min_object} must be 0 or more voxels", parameter="min_object")
+        if not (isinstance(self.bin, (int, np.integer)) and self.bin >= 1):
+            raise InputError(f"{self.bin!r} must be a whole number of voxels, 1 or more", parameter="bin")
 
 
 def is_segments_file(path):
@@ -167,10 +171,11 @@ def encode_volume(volume, prepare=None, read=None, progress=None, source=None):
     """
     read = read or ReadOptions()
     prepare = prepare or PrepOptions()
-    meta = {"source": str(source or volume.meta.get("source", "an array")), "input_shape": list(volume.shape),
-            "input_spacing": list(volume.spacing)}
-    meta.update({k: v for k, v in volume.meta.items()
-                 if k in ("format", "modality", "units", "series", "orientation", "orientation_from", "reoriented")})
+    meta = source_meta(volume, source)
+    if prepare.bin > 1:                 # a preview: the cropped volume binned (its crop is done)
+        volume = prep.binned(volume, prepare.bin, prepare.crop)
+        prepare = replace(prepare, crop=None)
+        meta["binned"] = prepare.bin
     if prepare.tissues:
         labels, info = prep.classify(volume, [window for _, window, _ in prepare.tissues], crop=prepare.crop,
                                      voxel=prepare.voxel, resample=prepare.resample, progress=progress)
@@ -191,6 +196,17 @@ def encode_volume(volume, prepare=None, read=None, progress=None, source=None):
         encoded = _encode_labels(volume, read, prepare, meta, progress)
     encoded.meta["normals_from"] = encoded.normals.source
     return encoded
+
+
+def source_meta(volume, source=None):
+    """What an object keeps of the volume (or :class:`~voxrender.io._stack.Stack`) it was made of: where it came
+    from, its shape and spacing as read, and what its reader said of it.
+    """
+    meta = {"source": str(source or volume.meta.get("source", "an array")), "input_shape": list(volume.shape),
+            "input_spacing": list(volume.spacing)}
+    meta.update({k: v for k, v in volume.meta.items()
+                 if k in ("format", "modality", "units", "series", "orientation", "orientation_from", "reoriented")})
+    return meta
 
 
 def _encode_labels(volume, read, prepare, meta, progress):
@@ -320,13 +336,37 @@ def _grey_normals(volume, mask, info, prepare):
         values = np.where(np.isfinite(values), values, prep.value_range(values)[0])
     if len(np.unique(np.asarray(values[::7, ::7, ::7]))) <= 2:
         return surface_normals(mask)
-    # a mask grid point k along an axis lies k * voxel / spacing input voxels from the first
-    step = np.array([info["voxel"] / s for s in volume.spacing]) if prepare.resample else np.ones(3)
+    step = grid_step(volume.spacing, info["voxel"], prepare.resample)
     if np.allclose(step, 1) and values.shape == mask.shape:      # the grid is the input's: its voxels
         return surface_normals(mask, values)
+    return surface_normals(mask, grey_sampler(values, step))
+
+
+def grid_step(spacing, voxel, resample=True):
+    """How many input voxels (x, y, z) apart the object's grid points are: a point ``k`` along an axis lies
+    ``k * voxel / spacing`` input voxels from the first.
+    """
+    return np.array([voxel / s for s in spacing]) if resample else np.ones(3)
+
+
+def grey_sampler(values, step, first_point=0, first_value=0):
+    """``sample(points)``: the grey ``values`` at points ``(N, 3)`` (x, y, z) of the object's grid, ``step`` input
+    voxels apart, by a cubic B-spline of the 4 x 4 x 4 voxels around each (the nearest voxel's value beyond the
+    edge).  For a slab: the points are the object's from its slice ``first_point``, and ``values`` the input's
+    from its slice ``first_value``.
+
+    The B-spline is not prefiltered: it smooths the values a little rather than passing through them, which
+    softens the terraces of an upsampled grid, and it reaches only the voxels around a point.  So a slab with two
+    slices of the input beyond the points it samples gives the same values, to the last bit, as the whole volume
+    (the slice numbers are added and taken away as whole numbers, which is exact).
+    """
     from scipy import ndimage
 
     def sample(points):
-        return ndimage.map_coordinates(values, (points * step)[:, ::-1].T, order=3, mode="nearest")
+        at = np.array(points, np.float64)
+        at[:, 2] += first_point
+        at *= step
+        at[:, 2] -= first_value
+        return ndimage.map_coordinates(values, at[:, ::-1].T, order=3, mode="nearest", prefilter=False)
 
-    return surface_normals(mask, sample)
+    return sample
