@@ -809,7 +809,10 @@ class _Dask:
             self.cluster.close()
 
 
-def _executor(jobs, scheduler=None):
+def executor(jobs, scheduler=None):
+    """What runs tasks: this process (``jobs`` 1), worker processes, or a Dask cluster (``scheduler``); each with
+    ``submit(fn, *args)``, ``as_completed(futures)`` and ``close()``.
+    """
     if scheduler:
         return _Dask(scheduler, jobs)
     return _Inline() if jobs <= 1 else _Processes(jobs)
@@ -965,7 +968,7 @@ def _render_all(items, out_dir, jobs, scheduler, cache_dir, progress):
         if item.makes_sheet and _png_size(item.sheet_path(out_dir)) is None:      # its sheet is made by its encode task
             todo.setdefault(id(item), (item, []))
     bar = progress(len(todo) + sum(len(v) for _, v in todo.values())) if progress else None
-    pool = _executor(jobs, scheduler)
+    pool = executor(jobs, scheduler)
     try:
         encodes = {pool.submit(_encode_task, item, str(cache_dir), str(out_dir)): (item, views)
                    for item, views in todo.values()}

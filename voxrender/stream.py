@@ -1,0 +1,439 @@
+"""Encoding a stack larger than memory: its slices streamed into runs, a slab at a time.
+
+The dynamic-screen paper stores its objects as slices read in order (its section 5); so does this encoder.  The
+stack (:func:`voxrender.io.open_stack`) is read a slab of slices at a time in canonical z order; each slab is
+cropped, binned, resampled to cubic voxels and thresholded (with the few slices beside it that resampling and the
+normals' stencil reach), and its runs, labels and grey-level normals are appended to files beside the output.  The
+``.vxs`` is then written from those files.  Nothing of the size of the volume is ever held, and the file is the
+one :func:`voxrender.pipeline.load_segments` and :meth:`~voxrender.pipeline.Encoded.save` would write for the same
+input, byte for byte: every step is local to a few slices, and done in the same arithmetic.
+
+The slabs are independent, so the stack is cut into parts that worker processes (``jobs``) or a Dask cluster
+(``scheduler``) encode, each reading its own slices from the shared path; the parts are joined in order.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import io, prep, segments
+from .errors import InputError
+from .normals import stencil_radius, surface_normals
+from .pipeline import PrepOptions, ReadOptions, grey_sampler, grid_step, source_meta
+
+SLAB_VOXELS = 1 << 26          # input voxels read at a time (128 MB of 16-bit slices)
+NORMAL_VOXELS = 1 << 24        # grid voxels whose band's normals are found at a time (their stencils are large)
+SAMPLE_STEP = 7                # every 7th voxel tells whether the values are a binary mask (as encode_volume does)
+
+
+class ByteCounts(list):
+    """Progress items that are byte counts: a progress bar shows them as MB read, MB/s and the time left."""
+
+
+@dataclass(frozen=True)
+class Plan:
+    """What every part of a streamed encode needs: where the stack is, how it is read, and the grid and selection
+    of the object.  Picklable, so that a worker process or a Dask worker can encode its part.
+    """
+
+    source: str
+    read: ReadOptions
+    shape: tuple            # the canonical stack's
+    region: tuple           # (z, y, x) slices of the canonical stack: the crop
+    bin: int
+    windows: tuple          # prep.Window each: the object (one) or its tissues, numbered 1, 2, ...
+    grid: tuple             # the object's grid (nz, ny, nx)
+    voxel: float
+    binned_spacing: tuple   # of the cropped, binned input
+    resampled: bool
+    normals_from: str       # "grey values" or "the binary mask"
+    fill: float | None      # the value NaN and inf voxels take for the normals (the lowest), when there are any
+    slab: int               # grid slices per slab
+
+
+def encode_stack(path, output, read=None, prepare=None, *, bin=1, jobs=1, scheduler=None, progress=None,
+                 slab_voxels=SLAB_VOXELS):
+    """Encode the stack at ``path`` into the ``.vxs`` file ``output`` a slab at a time, in bounded memory.
+
+    Parameters
+    ----------
+    path : str or Path
+        A slice stack whose reader reads slabs (:func:`voxrender.io.open_stack`).
+    output : str or Path
+        The ``.vxs`` file to write (atomically; the parts are made beside it and removed).
+    read : ReadOptions, optional
+    prepare : PrepOptions, optional
+        A threshold, window or tissues (presets) select the object, as for
+        :func:`voxrender.pipeline.load_segments`; ``min_object`` and label maps need the whole volume and are
+        refused.
+    bin : int
+        Mean binning of ``bin`` x ``bin`` x ``bin`` input voxels first (after the crop).
+    jobs : int
+        Worker processes encoding parts of the stack at once.
+    scheduler : str, optional
+        A Dask scheduler's address (or ``"local"``) to encode the parts on.
+    progress : callable, optional
+        ``progress(iterable, length, label)``; its items are :class:`ByteCounts`, the bytes read.
+    slab_voxels : int
+        Input voxels read at a time (smaller: less memory).
+
+    Returns
+    -------
+    dict
+        ``shape``, ``spacing``, ``meta``, ``segment_count``, ``voxel_count``, ``normal_count`` and ``how`` (how
+        the stack was read: :class:`voxrender.io._stack.Canonical`).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> np.save(folder / "v.npy", np.pad(np.full((2, 2, 2), 100, np.int16), 1))
+    >>> encode_stack(folder / "v.npy", folder / "v.vxs", prepare=PrepOptions(threshold=50))["voxel_count"]
+    8
+    """
+    read = read or ReadOptions()
+    prepare = prepare or PrepOptions()
+    if prepare.labels is not None:
+        raise InputError("a label map is read whole; select the object by a threshold, a window or tissues to "
+                         "stream the stack", parameter="labels")
+    if prepare.min_object > 1:
+        raise InputError("removing small pieces needs the whole object at once; drop it to stream the stack",
+                         parameter="min_object")
+    output = Path(output)
+    stack = _open(str(path), read)
+    plan, meta = _plan(stack, str(path), read, prepare, bin, slab_voxels)
+    parts = [(a, min(a + plan.slab, plan.grid[0])) for a in range(0, plan.grid[0], plan.slab)]   # a slab each
+    folder = Path(tempfile.mkdtemp(prefix=f".{output.name}.parts-", dir=output.parent))
+    try:
+        results = _run(plan, parts, folder, jobs, scheduler, progress, stack)
+        counts = np.concatenate([r["rows"] for r in results])
+        if not counts.any():
+            raise InputError(f"the {'windows' if len(plan.windows) > 1 else 'threshold'} "
+                             f"{', '.join(w.words() for w in plan.windows)} holds no voxel of {meta['source']}; "
+                             "choose another", parameter="preset" if prepare.tissues else "threshold")
+        return _write(output, plan, meta, prepare, results, counts) | {"how": stack.how}
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+# ------------------------------------------------------------------ the plan
+
+_STACKS = {}        # the stack each process has open, by source: a worker encodes several parts of one
+
+
+def _open(source, read):
+    key = (source, read)
+    if key not in _STACKS:
+        _STACKS.clear()
+        _STACKS[key] = io.open_stack(source, format=read.format, raw=read.raw, spacing=read.spacing,
+                                     series=read.series, frame=read.frame, level=read.level,
+                                     orientation=read.orientation, reorient=read.reorient)
+    return _STACKS[key]
+
+
+def _plan(stack, source, read, prepare, bin, slab_voxels):
+    """The :class:`Plan` of a stack and the meta its object will have (as :func:`encode_volume` makes it)."""
+    region = tuple(slice(r.start or 0, r.stop if r.stop is not None else n)
+                   for r, n in zip(prepare.crop or (slice(None),) * 3, stack.shape, strict=True))
+    prep.crop(np.broadcast_to(np.zeros(1, np.int8), stack.shape), prepare.crop)         # checks the crop
+    cropped = tuple(r.stop - r.start for r in region)
+    prep.check_bin(bin, cropped)
+    shape = tuple(n // bin for n in cropped)
+    spacing = tuple(float(s) * bin for s in stack.spacing)
+    voxel, out_shape = prep.cubic_grid(shape, spacing, prepare.voxel, prepare.resample)
+    grid = out_shape or shape
+    survey = _survey(stack, region, bin, prepare)
+    if prepare.tissues:
+        windows = tuple(window for _, window, _ in prepare.tissues)
+        threshold = ", ".join(str(w) for w in windows)
+    else:
+        found = prepare.threshold
+        if found is prep.otsu_threshold:
+            found = survey["otsu"]
+        elif callable(found):
+            raise InputError("a threshold found by a function needs the whole volume; give a number or a window "
+                             "to stream the stack", parameter="threshold")
+        windows = (found if isinstance(found, prep.Window) else prep.Window(float(found)),)
+        threshold = str(found) if isinstance(found, prep.Window) else windows[0].lo
+    plane = max(1, cropped[1] * cropped[2])
+    slab = max(1, min(grid[0], slab_voxels // (plane * bin)))
+    plan = Plan(source, read, stack.shape, region, bin, windows, grid, voxel, spacing, out_shape is not None,
+                "the binary mask" if survey["binary"] else "grey values", survey["fill"], slab)
+    meta = source_meta(stack, source)
+    if bin > 1:
+        meta["binned"] = bin
+    meta.update(threshold=threshold, voxel_mm=voxel)
+    return plan, meta
+
+
+def _survey(stack, region, bin, prepare):
+    """What must be known of the whole stack before its first slab is encoded, as :func:`encode_volume` learns it
+    from the whole array: whether it holds only two values (then the normals come from the mask), the lowest value
+    (what NaN and inf voxels take for the normals) and Otsu's threshold.  Integers with a threshold given need only
+    every 7th slice; Otsu's threshold and float values need one pass over all of them.
+    """
+    z0, z1 = region[0].start, region[0].stop
+    binned_slices = (z1 - z0) // bin
+    sampled = set(range(0, binned_slices, SAMPLE_STEP))
+    otsu = prepare.threshold is prep.otsu_threshold and not prepare.tissues
+    every = otsu or stack.dtype.kind == "f"
+    # the padding of the volume binarize sees: the whole one, or the cropped one binned
+    whole = (slice(0, stack.shape[0]), slice(None), slice(None))
+    seen = _Sampled(stack, *((region, bin) if bin > 1 else (whole, 1)))
+    padding = prep.padding_value(seen) if otsu else None
+    low = high = lowest = None
+    sample, histogram, finite = [], None, True
+    chosen = range(binned_slices) if every else sorted(sampled)
+    for first in range(0, len(chosen), 16):
+        numbers = list(chosen[first:first + 16])
+        values = _binned(stack, region, bin, numbers)
+        for number, plane in zip(numbers, values, strict=True):
+            if number in sampled:
+                sample.append(plane[::SAMPLE_STEP, ::SAMPLE_STEP])
+        if every:
+            lo, hi, _ = prep._kept_range(values, padding)
+            if lo is not None:
+                low, high = (lo, hi) if low is None else (min(low, lo), max(high, hi))
+            least, _, all_finite = prep._kept_range(values, None)
+            finite &= all_finite
+            if least is not None:
+                lowest = least if lowest is None else min(lowest, least)
+    if otsu:
+        prep.check_range(low, high, padding)
+        edges = prep.otsu_bins(low, high)
+        histogram = np.zeros(len(edges) - 1, np.int64)
+        for first in range(0, binned_slices, 16):
+            values = _binned(stack, region, bin, list(range(first, min(first + 16, binned_slices))))
+            for part in prep._kept_parts(values, padding):
+                histogram += np.histogram(part, bins=edges)[0]
+    sample = np.concatenate([np.asarray(s).ravel() for s in sample])
+    fill = None
+    if not finite:
+        fill = lowest if lowest is not None else 0.0
+        sample = np.where(np.isfinite(sample), sample, fill)
+    return {"binary": len(np.unique(sample)) <= 2, "fill": fill,
+            "otsu": prep.otsu_of_histogram(histogram, edges) if histogram is not None else None}
+
+
+class _Sampled:
+    """The cropped, binned stack seen as a :class:`~voxrender.io.Volume` by :func:`voxrender.prep.padding_value`,
+    which reads a few of its slices (``values[::step]``).
+    """
+
+    ndim = 3
+
+    def __init__(self, stack, region, bin):
+        self.stack, self.region, self.bin, self.meta, self.values = stack, region, bin, stack.meta, self
+        self.shape = tuple((r.stop - r.start) // bin if r.stop is not None else n
+                           for r, n in zip(region, stack.shape, strict=True))
+
+    def __getitem__(self, key):
+        return np.concatenate([_binned(self.stack, self.region, self.bin, [z])
+                               for z in range(*key.indices(self.shape[0]))])
+
+
+def _binned(stack, region, bin, numbers):
+    """The cropped, binned slices ``numbers`` (consecutive) of the stack: ``bin`` canonical slices each."""
+    z0 = region[0].start + numbers[0] * bin
+    values = stack.read_slices(z0, z0 + len(numbers) * bin)[:, region[1], region[2]]
+    return prep.bin_slices(values, bin) if bin > 1 else values
+
+
+# ------------------------------------------------------------------ the parts
+
+def _run(plan, parts, folder, jobs, scheduler, progress, stack):
+    """Encode the parts, in this process or on workers; their results in order."""
+    from .batch import executor
+
+    sizes = ByteCounts(stack.stored_bytes * (b - a) // plan.grid[0] for a, b in parts)   # about what each reads
+    ticks = iter(progress(sizes, sum(sizes), "encoding") if progress else sizes)
+    pool = executor(jobs, scheduler)
+    try:
+        futures = {pool.submit(encode_part, plan, a, b, str(folder)): n for n, (a, b) in enumerate(parts)}
+        results = [None] * len(parts)
+        for future in pool.as_completed(list(futures)):      # in order when run here, as they end on workers
+            results[futures[future]] = future.result()
+            next(ticks, None)
+        next(ticks, None)                                     # the bar ends
+        return results
+    finally:
+        pool.close()
+
+
+def encode_part(plan, first, last, folder):
+    """Encode the grid's slices ``first .. last - 1`` of a :class:`Plan`, a slab at a time, into files in
+    ``folder``: their runs, labels and normals.  Returns the runs each row has and the files.
+    """
+    stack = _open(plan.source, plan.read)
+    names = ("starts", "ends", "labels", "normal_index", "normal_packed")
+    files = {name: Path(folder) / f"{first:08d}.{name}" for name in names}
+    rows, normal_count = [], 0
+    with _Appender(files) as out:
+        for a in range(first, last, plan.slab):
+            b = min(a + plan.slab, last)
+            layers, grey, grey_first, mask_first = _slab(plan, stack, a, b)
+            own = layers[a - mask_first:b - mask_first]
+            if len(plan.windows) > 1:
+                runs = segments.encode_labels(own)
+                out.add(labels=np.asarray(runs.labels, "<u2"))
+            else:
+                runs = segments.encode(own.view(bool))
+            rows.append(np.diff(runs.offsets))
+            out.add(starts=np.asarray(runs.starts, "<i4"), ends=np.asarray(runs.ends, "<i4"))
+            for index, packed in _normals(plan, layers, grey, grey_first, mask_first, a, b):
+                out.add(normal_index=index, normal_packed=packed)
+                normal_count += len(index)
+    return {"first": first, "rows": np.concatenate(rows), "files": {k: str(v) for k, v in files.items()},
+            "normals": normal_count}
+
+
+def _slab(plan, stack, a, b):
+    """The object's grid slices ``a .. b - 1`` with those beside them that the normals' stencil reaches, as
+    window numbers (uint8 layers), and the grey values they come from: ``(layers, grey, grey_first,
+    mask_first)``, the last two being the input (binned) slice and the grid slice the arrays begin at.
+    """
+    halo = stencil_radius(plan.normals_from)             # the band needs one slice beside it, the stencil more
+    mask_first, mask_last = max(0, a - halo), min(plan.grid[0], b + halo)
+    nz = (plan.region[0].stop - plan.region[0].start) // plan.bin
+    if plan.resampled:
+        # the input slices the layers blend, and those the normals' B-spline reaches (grey_sampler), with room
+        lo = prep.input_slice(max(0, mask_first - 1), plan.voxel, plan.binned_spacing[2], nz)[0]
+        hi = prep.input_slice(min(plan.grid[0] - 1, mask_last), plan.voxel, plan.binned_spacing[2], nz)[0]
+        grey_first, grey_last = max(0, lo - 2), min(nz, hi + 4)
+    else:
+        grey_first, grey_last = mask_first, mask_last
+    grey = _binned(stack, plan.region, plan.bin, list(range(grey_first, grey_last)))
+    if plan.resampled:
+        shifted = _Shifted(grey, grey_first, nz)
+        planes = prep._resample_slices(shifted, plan.binned_spacing, plan.voxel, ks=range(mask_first, mask_last))
+    else:
+        planes = grey
+    layers = np.empty((mask_last - mask_first,) + plan.grid[1:], np.uint8)
+    for layer, plane in zip(layers, planes, strict=True):
+        prep.select_layer(plane, plan.windows, layer)
+    if plan.fill is not None:                       # NaN and inf take the lowest value, for the normals
+        grey = np.where(np.isfinite(grey), grey, grey.dtype.type(plan.fill))
+    return layers, grey, grey_first, mask_first
+
+
+class _Shifted:
+    """Slices of the binned input from ``first`` on, indexed as the whole input's (for the resampler)."""
+
+    def __init__(self, values, first, nz):
+        self.values, self.first = values, first
+        self.shape = (nz,) + values.shape[1:]
+
+    def __getitem__(self, i):
+        return self.values[i - self.first]
+
+
+def _normals(plan, layers, grey, grey_first, mask_first, a, b):
+    """The normals of the grid's slices ``a .. b - 1``, a few slices at a time: ``(index, packed)`` each."""
+    mask = layers.view(bool) if len(plan.windows) == 1 else layers > 0
+    binary = plan.normals_from == "the binary mask"
+    per = max(1, NORMAL_VOXELS // max(1, plan.grid[1] * plan.grid[2]))
+    for first in range(a, b, per):
+        last = min(first + per, b)
+        own = (first - mask_first, last - mask_first)
+        if binary:
+            found = surface_normals(mask, own=own, offset=mask_first, shape=plan.grid)
+        elif plan.resampled:
+            sample = grey_sampler(grey, grid_step(plan.binned_spacing, plan.voxel), mask_first, grey_first)
+            found = surface_normals(mask, sample, own=own, offset=mask_first, shape=plan.grid)
+        else:
+            found = surface_normals(mask, grey, own=own, offset=mask_first, shape=plan.grid)
+        index = np.asarray(found.index)
+        yield np.asarray(index, f"<i{index.dtype.itemsize}"), np.asarray(found.packed, "<i2").ravel()
+
+
+class _Appender:
+    """Files that arrays are appended to, one per name (created empty)."""
+
+    def __init__(self, files):
+        self.files = files
+
+    def __enter__(self):
+        self.handles = {name: open(path, "wb") for name, path in self.files.items()}
+        return self
+
+    def add(self, **arrays):
+        for name, array in arrays.items():
+            self.handles[name].write(np.ascontiguousarray(array).data)
+
+    def __exit__(self, *exc):
+        for handle in self.handles.values():
+            handle.close()
+
+
+# ------------------------------------------------------------------ the file
+
+def _write(output, plan, meta, prepare, results, counts):
+    """Write the ``.vxs`` of the parts' files: as :func:`voxrender.segments.save` writes the object in memory."""
+    offsets = np.zeros(len(counts) + 1, "<i8")
+    np.cumsum(counts, out=offsets[1:])
+    total = int(offsets[-1])
+    size = math.prod(plan.grid)
+    index_type = np.dtype("<i4" if size < 2 ** 30 else "<i8")
+    normals = sum(r["normals"] for r in results)
+
+    def spilled(name, dtype, count):
+        return segments.Spilled(tuple(r["files"][name] for r in results), count, np.dtype(dtype))
+
+    arrays = {"offsets": offsets, "starts": spilled("starts", "<i4", total), "ends": spilled("ends", "<i4", total)}
+    meta = dict(meta)
+    if len(plan.windows) > 1:
+        arrays["labels"] = spilled("labels", "<u2", total)
+        present = _labels_present(arrays["labels"])
+        meta.update(labels=present, label_table={
+            str(k): {"name": name, "colour": list(colour)}
+            for k, (name, _, colour) in enumerate(prepare.tissues, 1) if k in present})
+    arrays.update(normal_index=spilled("normal_index", index_type, normals),
+                  normal_packed=spilled("normal_packed", "<i2", 2 * normals))
+    meta["normals_from"] = plan.normals_from
+    spacing = (plan.voxel,) * 3 if plan.resampled else plan.binned_spacing
+    segments.write_sections(output, plan.grid, spacing, meta, arrays)
+    voxels = _voxel_count(arrays["starts"], arrays["ends"])
+    return {"shape": plan.grid, "spacing": spacing, "meta": meta, "segment_count": total, "voxel_count": voxels,
+            "normal_count": normals}
+
+
+def _chunks(spilled, count=1 << 24):
+    """The values of a spilled array, ``count`` at a time."""
+    for name in spilled.files:
+        with open(name, "rb") as f:
+            while chunk := f.read(count * spilled.dtype.itemsize):
+                yield np.frombuffer(chunk, spilled.dtype)
+
+
+def _labels_present(labels):
+    present = np.zeros(1 << 16, bool)
+    for chunk in _chunks(labels):
+        present[chunk] = True
+    return np.flatnonzero(present).tolist()
+
+
+def _voxel_count(starts, ends):
+    return int(sum(int(np.sum(e.astype(np.int64) - s + 1)) for s, e in zip(_chunks(starts), _chunks(ends),
+                                                                             strict=True)))
+
+
+def stream_or_not(stack, prepare, max_memory):
+    """Whether encoding ``stack`` in memory would pass ``max_memory`` bytes (the volume, its mask, and the float
+    copy resampling makes), so that it should be streamed.
+    """
+    voxels = math.prod(stack.shape)
+    return stack.nbytes + voxels * (1 + (4 if prepare.resample else 0)) > max_memory
+
+
+def machine_memory():
+    """The bytes of memory this machine has."""
+    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+
+
