@@ -1,0 +1,106 @@
+"""Streaming encode (voxrender.stream): a stack encoded a slab at a time gives the in-memory encode's file, byte for
+byte, in every orientation and with every step of the selection; in worker processes too.
+"""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from voxrender import orient, prep, segments
+from voxrender.errors import InputError
+from voxrender.pipeline import PrepOptions, ReadOptions, load_segments
+from voxrender.stream import encode_stack
+
+SHAPE = (13, 11, 15)
+
+
+def porous(shape=SHAPE, seed=0):
+    """A porous solid with smooth grey values and a little noise (int16, CT-like)."""
+    z, y, x = np.mgrid[:shape[0], :shape[1], :shape[2]]
+    field = np.sin(x / 2.3) * np.cos(y / 1.7) + np.sin(y / 2.1) * np.cos(z / 1.9) + np.sin(z / 2.7) * np.cos(x / 3.1)
+    noise = np.random.default_rng(seed).normal(0, 20, shape)
+    return (1000 + 800 * np.tanh(field * 2) + noise).astype(np.int16)
+
+
+def same_file(tmp_path, name, read, prepare, slabs=(1, 3), jobs=1, scheduler=None):
+    """Encode in memory and streamed (slabs of so many slices); assert the two files are the same bytes."""
+    expected = tmp_path / "memory.vxs"
+    load_segments(tmp_path / name, read, prepare).save(expected)
+    plane = SHAPE[1] * SHAPE[2]
+    for slab in slabs:
+        streamed = tmp_path / f"streamed-{slab}.vxs"
+        encode_stack(tmp_path / name, streamed, read, prepare, bin=prepare.bin, slab_voxels=slab * plane,
+                     jobs=jobs, scheduler=scheduler)
+        assert streamed.read_bytes() == expected.read_bytes(), (name, read, prepare, slab)
+    return segments.load(expected)
+
+
+CODES = ["".join(letters) for axes in itertools.permutations(["LR", "PA", "SI"])
+         for letters in itertools.product(*axes)]
+
+
+@pytest.mark.parametrize("code", CODES)
+def test_every_orientation_gives_the_same_file(tmp_path, code):
+    np.save(tmp_path / "v.npy", porous())
+    same_file(tmp_path, "v.npy", ReadOptions(orientation=code, spacing=(0.9, 1.0, 1.3)), PrepOptions(threshold=1000))
+
+
+def test_the_cases_say_how_the_stack_is_read(tmp_path):
+    np.save(tmp_path / "v.npy", porous())
+    hows = {code: encode_stack(tmp_path / "v.npy", tmp_path / "o.vxs", ReadOptions(orientation=code),
+                               PrepOptions(threshold=1000))["how"] for code in ("LPS", "RAS", "LPI", "SLP")}
+    assert hows == {"LPS": "stored order", "RAS": "stored order", "LPI": "from the far end",
+                    "SLP": "across the stored slices"}
+    assert orient.code_of(orient.direction_of("SLP")) == "SLP"
+
+
+@pytest.mark.parametrize("read, prepare", [
+    (ReadOptions(), PrepOptions()),                                                     # Otsu's threshold
+    (ReadOptions(orientation="LPI"), PrepOptions(threshold=prep.Window(800, 1500))),
+    (ReadOptions(spacing=(0.7, 0.9, 1.3), orientation="RAI"),
+     PrepOptions(threshold=1000, crop=(slice(2, 12), slice(1, 10), slice(3, 14)))),
+    (ReadOptions(spacing=(1.0, 1.0, 2.0)), PrepOptions(threshold=1000, bin=2)),
+    (ReadOptions(), PrepOptions(threshold=900, bin=3, crop=(slice(1, 12), slice(None), slice(2, 14)))),
+    (ReadOptions(spacing=(1, 1, 1.4)), PrepOptions(threshold=None, tissues=(
+        ("soft", prep.Window(600, 1200), (1, 0, 0)), ("bone", prep.Window(1200), (0, 1, 0))))),
+    (ReadOptions(), PrepOptions(threshold=1000, voxel=0.6)),                            # finer than the input
+])
+def test_every_step_of_the_selection_gives_the_same_file(tmp_path, read, prepare):
+    np.save(tmp_path / "v.npy", porous())
+    same_file(tmp_path, "v.npy", read, prepare)
+
+
+def test_float_values_with_nan_and_a_binary_mask(tmp_path):
+    values = porous().astype(np.float32)
+    values[np.random.default_rng(1).random(SHAPE) < 0.02] = np.nan
+    np.save(tmp_path / "f.npy", values)
+    same_file(tmp_path, "f.npy", ReadOptions(spacing=(1, 1, 1.5)), PrepOptions())
+    np.save(tmp_path / "b.npy", (porous() > 1000).astype(np.uint8))
+    assert same_file(tmp_path, "b.npy", ReadOptions(orientation="SLA"), PrepOptions(threshold=1)).meta[
+        "normals_from"] == "the binary mask"
+
+
+def test_parts_on_worker_processes_give_the_same_file(tmp_path):
+    np.save(tmp_path / "v.npy", porous())
+    same_file(tmp_path, "v.npy", ReadOptions(spacing=(1, 1, 1.2)), PrepOptions(threshold=1000), slabs=(2,), jobs=2)
+
+
+def test_parts_on_a_dask_cluster_give_the_same_file(tmp_path):
+    pytest.importorskip("distributed")
+    np.save(tmp_path / "v.npy", porous())
+    same_file(tmp_path, "v.npy", ReadOptions(), PrepOptions(threshold=1000), slabs=(4,), jobs=2, scheduler="local")
+
+
+def test_what_needs_the_whole_volume_is_refused_and_nothing_is_left(tmp_path):
+    np.save(tmp_path / "v.npy", porous())
+    out = tmp_path / "out"
+    out.mkdir()
+    for prepare, parameter in [(PrepOptions(threshold=1000, min_object=5), "min_object"),
+                               (PrepOptions(threshold=lambda v: 3), "threshold"),
+                               (PrepOptions(threshold=5000), "threshold"),
+                               (PrepOptions(threshold=1000, bin=20), "bin")]:
+        with pytest.raises(InputError) as error:
+            encode_stack(tmp_path / "v.npy", out / "o.vxs", ReadOptions(), prepare, bin=prepare.bin)
+        assert error.value.parameter == parameter
+        assert list(out.iterdir()) == []
