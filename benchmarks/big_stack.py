@@ -30,6 +30,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import shlex
 import shutil
 import statistics
 import subprocess
@@ -300,7 +301,7 @@ def commands(folder, out):
     folder, out = Path(folder), Path(out)
     threshold = f"{THRESHOLD:g}"
     encodes = {"encode": [], "encode --bin 2": ["--bin", 2], "encode --jobs 2": ["--jobs", 2]}
-    result = {"cat": (f"find '{folder}' -name '*.tif' -print0 | sort -z | xargs -0 cat > /dev/null",
+    result = {"cat": (f"find {shlex.quote(str(folder))} -name '*.tif' -print0 | sort -z | xargs -0 cat > /dev/null",
                       "cat slice_*.tif > /dev/null")}
     for name, options in encodes.items():
         vxs = out / (name.replace(" --", "-").replace(" ", "") + ".vxs")
