@@ -7,6 +7,7 @@ groups, RT dose grids by GridFrameOffsetVector.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 import struct
@@ -16,7 +17,19 @@ from collections.abc import Iterable
 import numpy as np
 
 from ..errors import InputError
-from ._shared import Reader, Volume, check_fits, check_spacing, fill_stack, first_line, natural_key, to_grey
+from ._shared import (
+    Reader,
+    Volume,
+    check_fits,
+    check_spacing,
+    fill_stack,
+    first_line,
+    identity_progress,
+    natural_key,
+    to_grey,
+)
+from ._stack import Stack
+from .images import place_slice
 
 SUFFIXES = (".dcm", ".dicom", ".ima")
 # Objects a study folder holds beside its slices that are not slices: segmentations (read as the labels of their
@@ -85,6 +98,53 @@ def _is_dicom(path):
 
 def read_dicom(folder, progress, series=None):
     """Read the DICOM series in ``folder`` (the one whose SeriesInstanceUID is ``series``, when it holds several)."""
+    chosen, aside = _series_files(folder, progress, series)
+    if _multiframe(chosen, folder):
+        with _header_values(folder):
+            volume = _read_multiframe(chosen[0][0])
+        volume.meta.update(_beside(aside))
+        return volume
+    items, spacing, meta, direction = _slices_placed(folder, chosen, aside)
+    values = fill_stack(items, lambda item: (_slice_values(item[0]), item[0].name), "reading DICOM slices", progress,
+                        folder)
+    return Volume(values, spacing, meta, direction)
+
+
+def open_dicom(folder, series=None):
+    """The DICOM series in ``folder`` as a :class:`~voxrender.io._stack.Stack`: its headers are read now, as
+    :func:`read_dicom` reads them, its pixels a slab of files at a time.
+
+    The slices' type is :func:`read_dicom`'s: the type their rescaled values need.  The headers tell it when the
+    rescale is fractional (``float32``) or takes every value the stored bits can hold into ``int16``; otherwise the
+    pixels of the slices whose headers do not tell are read once now, one file at a time, for their range.
+    """
+    chosen, aside = _series_files(folder, identity_progress, series)
+    if _multiframe(chosen, folder):
+        with _header_values(folder):
+            volume = _read_multiframe(chosen[0][0])                  # one file: read whole (see its notes)
+        volume.meta.update(_beside(aside))
+        values = volume.values
+        return Stack(values.shape, values.dtype, lambda z0, z1: values[z0:z1].copy(), volume.spacing,
+                     volume.direction, volume.meta)
+    items, spacing, meta, direction = _slices_placed(folder, chosen, aside)
+    told = [_told_type(ds) for _, ds in items]
+    found = {_slice_values(f).dtype for (f, _), dtype in zip(items, told, strict=True) if dtype is None}
+    dtype = np.result_type(*({dtype for dtype in told if dtype is not None} | found))   # as fill_stack widens
+    shape = (len(items), int(items[0][1].Rows), int(items[0][1].Columns))
+
+    def read_slices(z0, z1):
+        out = np.empty((z1 - z0, *shape[1:]), dtype)
+        for k, (f, _) in enumerate(items[z0:z1]):
+            place_slice(out, k, _slice_values(f), f.name, items[0][0].name)
+        return out
+
+    return Stack(shape, dtype, read_slices, spacing, direction, meta)
+
+
+def _series_files(folder, progress, series):
+    """The files of the chosen series in ``folder`` with their headers, ``[(path, header), ...]``, and the files
+    set aside as not slices (segmentations, reports ...), ``[(path, kind), ...]``.
+    """
     import pydicom
     from pydicom.errors import InvalidDicomError
 
@@ -132,28 +192,43 @@ def read_dicom(folder, progress, series=None):
     if series is not None:
         if series not in groups:
             raise InputError(f"no series {series} in {folder}; it holds {_list_series(groups)}", parameter="series")
-        chosen = groups[series]
-    elif len(groups) > 1:
+        return groups[series], aside
+    if len(groups) > 1:
         raise InputError(f"{folder} holds {len(groups)} DICOM series; choose one by its UID: "
                          f"{_list_series(groups)}", parameter="series")
-    else:
-        chosen = next(iter(groups.values()))
+    return next(iter(groups.values())), aside
+
+
+@contextlib.contextmanager
+def _header_values(folder):
+    """Header values found invalid while the slices are placed are a damaged folder: a value its VR does not allow
+    (IS "1A", DS "?.0"), or a sequence pydicom decodes only when first read, garbled or cut (OSError "no tag to
+    read", EOFError, struct.error).
+    """
     try:
-        if any(_frames(ds) > 1 for _, ds in chosen):
-            if len(chosen) > 1:
-                raise InputError(f"the series in {folder} mixes multi-frame and single-frame files; keep one kind")
-            volume = _read_multiframe(chosen[0][0])
-            volume.meta.update(_beside(aside))
-            return volume
-        chosen, spacing_z, sorted_by, direction = _sort_dicom(chosen)
-        pixel = _pixel_spacing(chosen[0][1], chosen[0][0])
+        yield
     except InputError:
         raise
-    # a value its VR does not allow (IS "1A", DS "?.0"); a sequence pydicom decodes only when first read, garbled
-    # or cut (OSError "no tag to read", EOFError, struct.error)
     except (ValueError, TypeError, NotImplementedError, OSError, EOFError, struct.error) as exc:
         raise InputError(f"{folder}: a DICOM header value is invalid ({first_line(exc)}); the files are damaged") \
             from None
+
+
+def _multiframe(chosen, folder):
+    """Whether the series is one multi-frame file (a series mixing both kinds is refused)."""
+    with _header_values(folder):
+        if not any(_frames(ds) > 1 for _, ds in chosen):
+            return False
+    if len(chosen) > 1:
+        raise InputError(f"the series in {folder} mixes multi-frame and single-frame files; keep one kind")
+    return True
+
+
+def _slices_placed(folder, chosen, aside):
+    """The slices of a classic series in order, with the volume's spacing, meta and direction, from their headers."""
+    with _header_values(folder):
+        chosen, spacing_z, sorted_by, direction = _sort_dicom(chosen)
+        pixel = _pixel_spacing(chosen[0][1], chosen[0][0])
     first = chosen[0][1]
     for f, ds in chosen:
         if (getattr(ds, "Rows", None), getattr(ds, "Columns", None)) != (first.Rows, first.Columns):
@@ -161,14 +236,7 @@ def read_dicom(folder, progress, series=None):
                              f"{first.Columns}x{first.Rows}; all slices must have the same size")
     if "PixelSpacing" not in first:
         warnings.warn("the DICOM series has no PixelSpacing; using 1 mm (give the spacing if that is wrong)",
-                      stacklevel=2)
-
-    def read(item):
-        f, _ = item
-        ds, data = _dicom_pixels(f)
-        return _rescale(to_grey(data, f.name), ds), f.name
-
-    values = fill_stack(chosen, read, "reading DICOM slices", progress, folder)
+                      stacklevel=3)
     meta = {"slices": len(chosen), "series": str(getattr(first, "SeriesInstanceUID", "")),
             "frame_of_reference": str(getattr(first, "FrameOfReferenceUID", "")),
             "description": str(getattr(first, "SeriesDescription", "")),
@@ -181,7 +249,13 @@ def read_dicom(folder, progress, series=None):
         meta["origin"] = _numbers(first.ImagePositionPatient)
     meta.update(_padding(first))
     meta.update(_beside(aside))
-    return Volume(values, check_spacing((pixel[1], pixel[0], spacing_z), folder), meta, direction)
+    return chosen, check_spacing((pixel[1], pixel[0], spacing_z), folder), meta, direction
+
+
+def _slice_values(path):
+    """The rescaled values of one slice file (colour becomes grey)."""
+    ds, data = _dicom_pixels(path)
+    return _rescale(to_grey(data, path.name), ds)
 
 
 def _numbers(value, count=3):
@@ -265,27 +339,62 @@ def _compression(ds, damaged):
 
 def _rescale(data, ds, slope=None, intercept=None):
     """Stored values to units (Hounsfield for CT) by RescaleSlope and RescaleIntercept: integers (int16 when they
-    fit) for whole numbers, else float32; a slope or intercept that is not finite, or takes the values beyond
-    float32, is a damaged file.
+    fit) for whole numbers, else float32 (see :func:`_rescaled_type`); a slope or intercept that is not finite, or
+    takes the values beyond float32, is a damaged file.
     """
-    try:
-        slope = float(slope if slope is not None else (getattr(ds, "RescaleSlope", 1) or 1))
-        intercept = float(intercept if intercept is not None else (getattr(ds, "RescaleIntercept", 0) or 0))
-    except (ValueError, TypeError, NotImplementedError):          # not a number, or of an unknown VR
-        raise InputError("a DICOM file's RescaleSlope or RescaleIntercept is not a number; the file is damaged") \
-            from None
+    slope, intercept = _slope_intercept(ds, slope, intercept)
     low, high = (float(data.min()), float(data.max())) if data.size else (0.0, 0.0)
     ends = [low * slope + intercept, high * slope + intercept]
     if not np.all(np.isfinite([slope, intercept])) or max(abs(e) for e in ends) > float(np.finfo(np.float32).max):
         raise InputError(f"a DICOM file's RescaleSlope {slope:g} and RescaleIntercept {intercept:g} take its values "
                          f"{low:g} to {high:g} beyond any number; the file is damaged")
-    whole = slope.is_integer() and intercept.is_integer() and data.dtype.kind in "iub"
-    if whole and all(np.iinfo(np.int32).min <= e <= np.iinfo(np.int32).max for e in [*ends, slope, intercept]):
-        data = data.astype(np.int32) * int(slope) + int(intercept)
-        if data.size and np.iinfo(np.int16).min <= min(ends) and max(ends) <= np.iinfo(np.int16).max:
-            data = data.astype(np.int16)      # the ends of the stored range, rescaled, are those of the data's
-        return data
-    return (data * np.float32(slope) + np.float32(intercept)).astype(np.float32)
+    dtype = _rescaled_type(ends if data.size else [np.inf], slope, intercept, data.dtype.kind)
+    if dtype == np.float32:
+        return (data * np.float32(slope) + np.float32(intercept)).astype(np.float32)
+    return (data.astype(np.int32) * int(slope) + int(intercept)).astype(dtype, copy=False)
+
+
+def _slope_intercept(ds, slope=None, intercept=None):
+    """The RescaleSlope and RescaleIntercept of ``ds`` (or those given: a frame's), as floats."""
+    try:
+        return (float(slope if slope is not None else (getattr(ds, "RescaleSlope", 1) or 1)),
+                float(intercept if intercept is not None else (getattr(ds, "RescaleIntercept", 0) or 0)))
+    except (ValueError, TypeError, NotImplementedError):          # not a number, or of an unknown VR
+        raise InputError("a DICOM file's RescaleSlope or RescaleIntercept is not a number; the file is damaged") \
+            from None
+
+
+def _rescaled_type(ends, slope, intercept, kind):
+    """The type of values of ``kind`` rescaled to the range ``ends``: whole numbers within int32 stay integers,
+    int16 when the range fits it (an int32 range, such as ``[inf]``, never does), anything else becomes float32.
+    """
+    int16, int32 = np.iinfo(np.int16), np.iinfo(np.int32)
+    if slope.is_integer() and intercept.is_integer() and kind in "iub" and \
+            all(int32.min <= e <= int32.max for e in [*ends, slope, intercept] if np.isfinite(e)):
+        return np.dtype(np.int16 if int16.min <= min(ends) and max(ends) <= int16.max else np.int32)
+    return np.dtype(np.float32)
+
+
+def _told_type(ds):
+    """The type :func:`_rescale` gives the pixels of the slice ``ds`` when its header alone tells it: float32
+    for a fractional rescale, int16 when every value its stored bits can hold rescales into int16; else ``None``
+    (the type hangs on the values: only their range tells).
+    """
+    try:
+        grey = int(ds.get("SamplesPerPixel", 1) or 1) == 1
+        allocated, bits = int(ds.BitsAllocated), int(ds.BitsStored)        # 32 or 64 allocated: maybe floats
+        signed = int(ds.get("PixelRepresentation", 0) or 0) == 1
+        slope, intercept = _slope_intercept(ds)
+    except (AttributeError, KeyError, ValueError, TypeError, InputError):      # the pixels' reading will say
+        return None
+    if not grey or allocated not in (8, 16) or not 1 <= bits <= allocated or \
+            not np.all(np.isfinite([slope, intercept])):
+        return None
+    if not (slope.is_integer() and intercept.is_integer()):
+        return np.dtype(np.float32)
+    low, high = (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if signed else (0, (1 << bits) - 1)
+    dtype = _rescaled_type([low * slope + intercept, high * slope + intercept], slope, intercept, "i")
+    return dtype if dtype == np.int16 else None
 
 
 def _group(ds, sequence, name):
@@ -462,4 +571,4 @@ def holds_dicom(path):
     return _is_dicom(path) if path.is_file() else bool(_dicom_files(path))
 
 
-READER = Reader(read_dicom, SUFFIXES, options=("series",), sniff=holds_dicom)
+READER = Reader(read_dicom, SUFFIXES, options=("series",), sniff=holds_dicom, open=open_dicom)

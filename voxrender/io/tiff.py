@@ -57,7 +57,7 @@ class _Pages:
     """The pages of a TIFF that make its stack: ``shape`` (pages first, colour samples last) and ``dtype`` as
     stored (in the file's byte order); ``offsets`` where each page's data starts, when every page is stored whole
     and uncompressed, else ``keys``, their numbers in the file (``None``: the series is read whole, its pages not
-    one a slice).
+    one a slice); ``series``: they are tifffile's first series, not a page of each.
     """
 
     path: object
@@ -65,16 +65,20 @@ class _Pages:
     dtype: np.dtype
     offsets: np.ndarray | None = None
     keys: list | None = None
+    series: bool = True
 
     def read(self, k0, k1):
-        """Pages ``k0 .. k1 - 1`` as an array ``[k1 - k0, ...]`` in native byte order; a damaged file is bad input."""
-        if self.offsets is not None:
+        """Pages ``k0 .. k1 - 1`` as an array ``[k1 - k0, ...]`` in native byte order: a whole series by tifffile,
+        which knows its layouts best, a slab at its offsets or by its pages' numbers; a damaged file is bad input.
+        """
+        whole = self.series and (k0, k1) == (0, self.shape[0])
+        if self.offsets is not None and not whole:
             return self._at_offsets(k0, k1)
         import tifffile
 
         try:
             with quiet_log("tifffile"), tifffile.TiffFile(self.path) as tif:
-                if self.keys is None:
+                if self.series and (whole or self.keys is None):
                     values = _first_series(tif, self.path).asarray()[k0:k1]
                 else:
                     values = tif.asarray(key=self.keys[k0:k1])
@@ -113,7 +117,8 @@ def _pages_of(path):
             count = len(tif.pages)
             broken = next((line for line in logged if "invalid page offset" in line), None)
             byteorder = tif.byteorder
-            if len(tif.series) > 1 and series.ndim - (first.samplesperpixel > 1) == 2:     # a series a page
+            one_series = not (len(tif.series) > 1 and series.ndim - (first.samplesperpixel > 1) == 2)
+            if not one_series:                                                             # a series a page
                 pages = [page for page in tif.pages if page.shape == first.shape and page.dtype == first.dtype]
                 shape = (len(pages), *first.shape)
             else:
@@ -123,7 +128,7 @@ def _pages_of(path):
                     pages = None                                     # the pages are not the slices
             dtype = np.dtype(byteorder + series.dtype.char)
             offsets = keys = None
-            if series.dataoffset is not None and len(shape) > 2 and shape == series.shape:   # one block of data
+            if one_series and series.dataoffset is not None and len(shape) > 2:               # one block of data
                 offsets = series.dataoffset + np.arange(shape[0]) * _page_bytes(shape, dtype)
             elif pages is not None and all(page.is_final for page in pages):
                 offsets = np.array([page.dataoffsets[0] for page in pages], np.int64)
@@ -141,7 +146,7 @@ def _pages_of(path):
         raise InputError(f"{path} is a single 2-D image; give a multi-page TIFF or a folder of slices")
     if offsets is not None:
         check_holds(path, int(offsets.max()) + _page_bytes(shape, dtype), path.stat().st_size)
-    return _Pages(path, tuple(shape), dtype, offsets, keys)
+    return _Pages(path, tuple(shape), dtype, offsets, keys, one_series)
 
 
 def _page_bytes(shape, dtype):
