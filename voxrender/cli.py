@@ -31,10 +31,29 @@ from .view import PRESETS, angles_from_vpn
 
 
 def progress(iterable, length=None, label=None):
-    """A click progress bar on stderr when it is a terminal; the bare iterable otherwise."""
+    """A click progress bar on stderr when it is a terminal; the bare iterable otherwise.  Items that are byte
+    counts (a streamed encode's slabs) show as MB read, MB/s and the time left.
+    """
     if not sys.stderr.isatty():
         return iterable
-    return _bar(iterable, length, label)
+    from .stream import ByteCounts
+
+    return _byte_bar(iterable, length, label) if isinstance(iterable, ByteCounts) else _bar(iterable, length, label)
+
+
+def _byte_bar(counts, length, label):
+    started, done = time.perf_counter(), 0
+
+    def rate(_):
+        seconds = max(time.perf_counter() - started, 1e-6)
+        return f"{done / 1e6:,.0f} of {length / 1e6:,.0f} MB, {done / 1e6 / seconds:,.0f} MB/s"
+
+    with click.progressbar(length=length, label=label, file=sys.stderr, item_show_func=rate, show_eta=True,
+                           show_percent=True) as bar:
+        for count in counts:
+            yield count
+            done += count
+            bar.update(count, count)
 
 
 def _bar(iterable, length, label):
@@ -99,7 +118,7 @@ def _read_options(options):
     if options["orientation"] is not None:
         orient.direction_of(options["orientation"])          # a bad code is an error before anything is read
     return ReadOptions(options["format"], raw, spacing, options["series"], options["frame"], options["orientation"],
-                       options["reorient"])
+                       options["reorient"], options["level"])
 
 
 def _prep_options(options):
@@ -122,7 +141,8 @@ def _prep_options(options):
         threshold = None if labels or tissues else prep.otsu_threshold
     several = tuple((name, tissue.window, tissue.colour) for name, tissue in tissues) if len(tissues) > 1 else ()
     crop = parse.crop(options["crop"]) if options["crop"] else None
-    return PrepOptions(threshold, crop, options["voxel"], options["resample"], options["min_object"], labels, several)
+    return PrepOptions(threshold, crop, options["voxel"], options["resample"], options["min_object"], labels, several,
+                       options["bin"])
 
 
 def _render_options(options):
@@ -149,13 +169,19 @@ def _output_paths(options):
     return {name: options[name] for name in OUTPUTS if options.get(name) is not None}
 
 
+def _max_memory_option(command):
+    return click.option("--max-memory", metavar="SIZE",
+                        help="Memory to stay within, e.g. 8G (default: half the machine's): a larger stack is "
+                             "streamed, an octree build that would need more is refused.")(command)
+
+
 def _check_vxs_options(path, options):
     """A .vxs file is already thresholded: refuse options that would silently do nothing."""
     if not is_segments_file(path):
         return
     given = [flag(name) for name in ("threshold", "preset", "label", "labels", "labels_from", "crop", "voxel", "raw",
-                                     "spacing", "series", "frame", "orientation")
-             if options.get(name) not in (None, False)]
+                                     "spacing", "series", "frame", "level", "orientation")
+             if options.get(name) not in (None, False)] + ["--bin"] * (options.get("bin", 1) != 1)
     if given:
         raise InputError(f"{path} is already encoded, so {', '.join(given)} cannot apply; "
                          "give the slice stack instead")
@@ -191,6 +217,8 @@ def _read_options_decorator(command):
         click.option("--spacing", metavar="X,Y,Z", help="Voxel spacing in mm; overrides the files."),
         click.option("--series", metavar="UID", help="DICOM SeriesInstanceUID, when a folder holds several."),
         click.option("--frame", type=int, metavar="N", help="The volume to read from a 4-D NIfTI or NRRD (from 0)."),
+        click.option("--level", type=click.IntRange(0), metavar="N",
+                     help="The level of a multiscale OME-Zarr (0 the finest; default: the finest)."),
         click.option("--orientation", metavar="CODE",
                      help="Orientation of an input whose header has none, e.g. RAS or LPI: the sides voxel x, y and "
                           "z grow toward."),
@@ -222,6 +250,9 @@ def _prep_options_decorator(command):
                      help="Resample to cubic voxels from the spacing."),
         click.option("--voxel", type=float, metavar="MM", help="Cubic voxel size (default: smallest spacing)."),
         click.option("--min-object", type=int, default=0, metavar="N", help="Drop connected specks under N voxels."),
+        click.option("--bin", type=click.IntRange(1, 64), default=1, show_default=True, metavar="N",
+                     help="Mean of every N x N x N voxels (after --crop), for a preview of a huge stack: 2048^3 "
+                          "becomes 1024^3 with --bin 2; the spacing grows N times."),
     ])
 
 
@@ -522,8 +553,18 @@ def slices_command(input_path, output_path, size, colour_table, legend, dicom, *
 @click.option("--octree", "as_octree", is_flag=True,
               help="Also keep the region octree, linear octree and face adjacency (.vxo), so that octree methods "
                    "rendering from it pay only their traversal.")
-def encode_command(input_path, output_path, as_octree, **options):
-    """Select the object of INPUT and save its run-length segments (.vxs), with its octrees (.vxo)."""
+@click.option("--jobs", type=click.IntRange(1, 1024), default=1, show_default=True,
+              help="Worker processes encoding slabs of the stack at once.")
+@click.option("--scheduler", metavar="ADDRESS|local",
+              help="Encode the slabs on a Dask cluster ('local' starts one here); its workers read INPUT's path.")
+@_max_memory_option
+def encode_command(input_path, output_path, as_octree, jobs, scheduler, max_memory, **options):
+    """Select the object of INPUT and save its run-length segments (.vxs), with its octrees (.vxo).
+
+    A stack larger than --max-memory is read a slab at a time (streamed), in bounded memory.
+    """
+    from .stream import encode_file
+
     suffix = ".vxo" if as_octree else ".vxs"
     if output_path.suffix.lower() != suffix:
         raise InputError(f"the output {output_path} must end in {suffix}")
@@ -531,15 +572,20 @@ def encode_command(input_path, output_path, as_octree, **options):
         raise InputError(f"{input_path} is already encoded")
     _check_vxs_options(input_path, options)
     output.check_writable(output_path)
-    loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
-    loaded.save(output_path, octree=as_octree)
+    loaded, how = encode_file(input_path, output_path, _read_options(options), _prep_options(options),
+                              octree=as_octree, jobs=jobs, scheduler=scheduler,
+                              max_memory=parse.memory(max_memory) if max_memory else None, progress=progress)
     s = loaded.segments
     nz, ny, nx = s.shape
     chosen = [f"threshold {s.meta['threshold']}"] if "threshold" in s.meta else []
     if "labels" in s.meta:
         chosen.append(f"{len(s.meta['labels'])} labels" + (" as one object" if s.labels is None else ""))
+    if s.meta.get("binned"):
+        chosen.append(f"binned by {s.meta['binned']}")
+    if how:
+        chosen.append(f"streamed ({how})")
     click.echo(f"{output_path}: {nx}x{ny}x{nz} voxels, {s.voxel_count} in the object, {s.segment_count} segments"
-               + "".join(f", {c}" for c in chosen))
+               + "".join(f", {c}" for c in chosen) + f", {loaded.seconds['encode']:.1f} s")
     if as_octree:
         tree = loaded.octree()
         counts = tree.counts()

@@ -35,6 +35,19 @@ def size(text):
     return height, width
 
 
+def memory(text):
+    """A size in bytes: ``"8G"``, ``"512M"``, ``"2.5GB"`` or a number of bytes (binary units, as memory is counted).
+
+    >>> memory("8G"), memory("512m"), memory("1000")
+    (8589934592, 536870912, 1000)
+    """
+    units = {"": 1, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}
+    found = re.fullmatch(r"\s*([0-9]*\.?[0-9]+)\s*([kmgt]?)(i?b)?\s*", str(text).lower())
+    if not found or float(found[1]) <= 0:
+        raise InputError(f"{text!r} must be a size such as 8G, 512M or a number of bytes", parameter="max_memory")
+    return int(float(found[1]) * units[found[2]])
+
+
 def vector(text, parameter, count=3):
     """``"1,2,3"`` to a tuple of ``count`` finite floats.
 

@@ -18,6 +18,7 @@ import math
 import os
 import shutil
 import tempfile
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,7 +27,7 @@ import numpy as np
 from . import io, prep, segments
 from .errors import InputError
 from .normals import stencil_radius, surface_normals
-from .pipeline import PrepOptions, ReadOptions, grey_sampler, grid_step, source_meta
+from .pipeline import PrepOptions, ReadOptions, grey_sampler, grid_step, load_segments, source_meta
 
 SLAB_VOXELS = 1 << 26          # input voxels read at a time (128 MB of 16-bit slices)
 NORMAL_VOXELS = 1 << 24        # grid voxels whose band's normals are found at a time (their stencils are large)
@@ -424,12 +425,63 @@ def _voxel_count(starts, ends):
                                                                              strict=True)))
 
 
-def stream_or_not(stack, prepare, max_memory):
-    """Whether encoding ``stack`` in memory would pass ``max_memory`` bytes (the volume, its mask, and the float
-    copy resampling makes), so that it should be streamed.
+def encode_file(path, output, read=None, prepare=None, *, octree=False, jobs=1, scheduler=None, max_memory=None,
+                progress=None):
+    """Encode the input at ``path`` into ``output`` (``.vxs``; ``.vxo`` with the octrees, ``octree=True``): a slab
+    at a time (:func:`encode_stack`) when reading it whole would take more than ``max_memory`` bytes (default: half
+    the machine's memory) or when ``jobs`` or ``scheduler`` share the work out, else in memory.  Either way the
+    file is the same.
+
+    Returns
+    -------
+    encoded : Encoded
+        The object, memory-mapped from ``output``; ``seconds["encode"]`` the time it took.
+    how : str or None
+        How a streamed stack was read (:class:`voxrender.io._stack.Canonical`), ``None`` when it was read whole.
     """
-    voxels = math.prod(stack.shape)
-    return stack.nbytes + voxels * (1 + (4 if prepare.resample else 0)) > max_memory
+    from .pipeline import is_segments_file
+
+    read, prepare = read or ReadOptions(), prepare or PrepOptions()
+    max_memory = max_memory or machine_memory() // 2
+    started = time.perf_counter()
+    streamed = not is_segments_file(path) and _streams(path, read, prepare, max_memory, jobs > 1 or scheduler)
+    if streamed:
+        encode_stack(path, output, read, prepare, bin=prepare.bin, jobs=jobs, scheduler=scheduler,
+                     progress=progress)
+        loaded = load_segments(output)
+    else:
+        loaded = load_segments(path, read, prepare, progress)
+    if octree:
+        from .octree import check_build_memory
+
+        check_build_memory(loaded.segments, max_memory)
+    if octree or not streamed:
+        loaded.save(output, octree=octree)
+    encoded = load_segments(output)                      # mapped from the file, as a renderer will take it
+    encoded.seconds = {"encode": time.perf_counter() - started}
+    return encoded, _open(str(path), read).how if streamed else None
+
+
+def _streams(path, read, prepare, max_memory, shared):
+    """Whether to encode the input at ``path`` a slab at a time: its reader reads slabs, and the work is shared
+    out or reading it whole would pass ``max_memory`` (the volume, its mask, and the float slices of resampling).
+    """
+    if read.format == "auto" and io.detect_format(path, read.raw) not in _SLABBED or \
+            read.format != "auto" and read.format not in _SLABBED:
+        return False
+    stack = _open(str(path), read)
+    too_large = stack.nbytes + math.prod(stack.shape) // max(1, prepare.bin) ** 3 > max_memory
+    if (shared or too_large) and prepare.labels is None and prepare.min_object <= 1:
+        return True
+    if too_large:
+        what = "a label map" if prepare.labels is not None else "removing small pieces (min_object)"
+        raise InputError(f"{path} takes {stack.nbytes / 1e9:.1f} GB in memory, more than the {max_memory / 1e9:.1f} "
+                         f"GB allowed, and {what} needs it whole; bin it, crop it, or allow more memory",
+                         parameter="max_memory")
+    return False
+
+
+_SLABBED = tuple(name for name, reader in io.READERS.items() if reader.open is not None)
 
 
 def machine_memory():
