@@ -17,7 +17,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from . import __version__, batch, colours, compare, io, lines, orient, output, parse, prep, samples, segments
+from . import __version__, batch, colours, compare, io, lines, orient, output, parse, prep, samples, segments, stream
 from ._picture import PROJECTIONS, Outputs, RenderOptions, about, label_table, picture, write_outputs
 from ._render import DEFAULT_METHOD, METHODS, Clip
 from ._render.raycast import CONNECTIVITIES
@@ -36,9 +36,9 @@ def progress(iterable, length=None, label=None):
     """
     if not sys.stderr.isatty():
         return iterable
-    from .stream import ByteCounts
-
-    return _byte_bar(iterable, length, label) if isinstance(iterable, ByteCounts) else _bar(iterable, length, label)
+    if isinstance(iterable, stream.ByteCounts):
+        return _byte_bar(iterable, length, label)
+    return _bar(iterable, length, label)
 
 
 def _byte_bar(counts, length, label):
@@ -563,8 +563,6 @@ def encode_command(input_path, output_path, as_octree, jobs, scheduler, max_memo
 
     A stack larger than --max-memory is read a slab at a time (streamed), in bounded memory.
     """
-    from .stream import encode_file
-
     suffix = ".vxo" if as_octree else ".vxs"
     if output_path.suffix.lower() != suffix:
         raise InputError(f"the output {output_path} must end in {suffix}")
@@ -572,7 +570,7 @@ def encode_command(input_path, output_path, as_octree, jobs, scheduler, max_memo
         raise InputError(f"{input_path} is already encoded")
     _check_vxs_options(input_path, options)
     output.check_writable(output_path)
-    loaded, how = encode_file(input_path, output_path, _read_options(options), _prep_options(options),
+    loaded, how = stream.encode_file(input_path, output_path, _read_options(options), _prep_options(options),
                               octree=as_octree, jobs=jobs, scheduler=scheduler,
                               max_memory=parse.memory(max_memory) if max_memory else None, progress=progress)
     s = loaded.segments
@@ -612,8 +610,17 @@ def info_command(input_path, as_json, **options):
             summary["octree"] = {"side": 1 << loaded.octree().n, **{k: counts[k] for k in ("black", "white", "grey")},
                                  "face_adjacency": "kept"}
     else:
-        volume = _read_options(options).read(input_path, progress)
-        summary = _describe(input_path, volume, _prep_options(options))
+        read = _read_options(options)
+        stack = stream.stack_of(input_path, read)
+        if stack is not None and stack.nbytes > stream.machine_memory() // 2:       # described by its header
+            summary = {"input": str(input_path), "format": stack.meta.get("format"),
+                       "dimensions_xyz": list(stack.shape[::-1]), "spacing_mm": list(stack.spacing),
+                       "dtype": str(stack.dtype), "size_mb": round(stack.nbytes / 1e6),
+                       "values": "not read: the stack is larger than half this machine's memory; encode streams it"}
+        else:
+            summary = _describe(input_path, read.read(input_path, progress), _prep_options(options))
+        if stack is not None:
+            summary["streamed"] = stream.HOW[stack.how]
     if as_json:
         click.echo(json.dumps(summary, indent=2, default=float))
         return

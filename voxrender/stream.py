@@ -466,10 +466,9 @@ def _streams(path, read, prepare, max_memory, shared):
     """Whether to encode the input at ``path`` a slab at a time: its reader reads slabs, and the work is shared
     out or reading it whole would pass ``max_memory`` (the volume, its mask, and the float slices of resampling).
     """
-    if read.format == "auto" and io.detect_format(path, read.raw) not in _SLABBED or \
-            read.format != "auto" and read.format not in _SLABBED:
+    stack = stack_of(path, read)
+    if stack is None:
         return False
-    stack = _open(str(path), read)
     too_large = stack.nbytes + math.prod(stack.shape) // max(1, prepare.bin) ** 3 > max_memory
     if (shared or too_large) and prepare.labels is None and prepare.min_object <= 1:
         return True
@@ -482,6 +481,18 @@ def _streams(path, read, prepare, max_memory, shared):
 
 
 _SLABBED = tuple(name for name, reader in io.READERS.items() if reader.open is not None)
+
+# how a streamed stack is read, in words (:class:`voxrender.io._stack.Canonical`'s ``how``)
+HOW = {"stored order": "a slab of slices at a time, in stored order",
+       "from the far end": "a slab of slices at a time, from the far end (the stored z axis is flipped)",
+       "across the stored slices": "every stored slice again for each slab, as the stored slice axis is not z: "
+                                   "bounded memory, slower"}
+
+
+def stack_of(path, read):
+    """The stack at ``path`` unread, when its reader reads slabs; else ``None``."""
+    format = io.detect_format(path, read.raw) if read.format == "auto" else read.format
+    return _open(str(path), read) if format in _SLABBED else None
 
 
 def machine_memory():
