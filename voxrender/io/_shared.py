@@ -506,8 +506,8 @@ class InflatedStream:
 
     The stream must hold ``promised`` bytes: one that ends before a piece does, or is damaged, is refused when that
     piece is read; one holding more (unless ``longer``: the piece is the first part of it) when its last piece is.
-    Between reads the file is open only while a piece is inflated (the open stream is a generator's, closed when
-    the stream ends, starts again, or is dropped).
+    Between reads the file stays open, in the generator that inflates it: it is closed when the last piece has been
+    read, when the stream starts again, or when the stream is dropped.
 
     Examples
     --------
@@ -538,16 +538,21 @@ class InflatedStream:
             if start + count == self.promised and not self.longer and self._more():
                 raise _longer_stream(self.codec, self.path, self.promised)
         except InputError:
-            self._chunks.close()             # the next read starts again: no half-consumed state kept
-            self._chunks = None
+            self._close()                    # the next read starts again: no half-consumed state kept
             raise
+        if start + count == self.promised:   # nothing further to read: the file need not stay open
+            self._close()
         return out
 
     def _restart(self):
-        if self._chunks is not None:
-            self._chunks.close()
+        self._close()
         self._chunks = self._inflated()
         self.position, self._held = 0, memoryview(b"")
+
+    def _close(self):
+        if self._chunks is not None:
+            self._chunks.close()
+        self._chunks = None
 
     def _inflated(self):
         with open(self.path, "rb") as f:

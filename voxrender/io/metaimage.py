@@ -1,6 +1,7 @@
 """MetaImage (ITK): a ``.mhd`` text header beside its data file, or a ``.mha`` holding both; raw or zlib.
 
 MetaImage has no library here: the header is ``Key = Value`` lines up to ``ElementDataFile``.
+:func:`open_metaimage` gives the volume unread, a slab at a time.
 """
 
 from __future__ import annotations

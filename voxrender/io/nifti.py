@@ -1,7 +1,7 @@
 """NIfTI-1 or -2, ``.nii`` or ``.nii.gz`` (nibabel), scaled by scl_slope and scl_inter, oriented by its sform or qform.
 
 A 4-D file gives the volume chosen by ``frame``.  A folder of NIfTI files (a segmentation's one file per organ) is
-recognised, and refused with what it holds.
+recognised, and refused with what it holds.  :func:`open_nifti` gives the volume unread, a slab at a time.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ def read_nifti(path, progress, frame=None):
         _check_sizes(path, image, shape)
         try:                                                 # of a 4-D file, nibabel reads only the frame
             values = np.asanyarray(image.dataobj[..., frame] if len(shape) == 4 else image.dataobj)
-        except _damaged() as exc:                               # a truncated or corrupt file
+        except _damaged() as exc:                            # a truncated or corrupt file
             raise InputError(f"cannot read the voxels of {path}: {first_line(exc)}; the file is truncated or "
                              "damaged") from None
         values = np.transpose(values, (2, 1, 0))              # NIfTI stores [i, j, k], i fastest: our x, y, z

@@ -1,7 +1,8 @@
 """NRRD, ``.nrrd`` or ``.nhdr`` with a detached data file (pynrrd): raw, gzip or bzip2, oriented by its space.
 
 A 4-D file gives the volume chosen by ``frame``; a 3D Slicer ``.seg.nrrd`` also gives its segments' names and
-colours.  A folder of NRRD files is recognised, and refused with what it holds.
+colours.  A folder of NRRD files is recognised, and refused with what it holds.  :func:`open_nrrd` gives the volume
+unread, a slab at a time.
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ def read_nrrd(path, progress, frame=None):
             check_fits(stored.shape, stored.dtype, path)
             with open(path, "rb") as f:
                 f.seek(stored.offset)
-                values = stored.header_read_data(f)
+                values = stored.read_text(f)
         else:
             with open(stored.source, "rb") as data:
                 data.seek(stored.offset)
@@ -109,7 +110,7 @@ class _Stored:
     frame: int | None = None
     frame_axis: int | None = None
 
-    def header_read_data(self, f):
+    def read_text(self, f):
         """The voxels of a text encoding, read by pynrrd from ``f`` (at ``offset``) or its data file."""
         import nrrd
 
