@@ -57,6 +57,16 @@ def test_plain_arrays(tmp_path, zarr_format):
     assert volume.meta["level"] == 0 and volume.meta["levels"] == [stack.shape] and volume.direction is None
 
 
+def test_big_endian_and_half_floats_come_in_native_order(tmp_path):
+    stack = random_stack()
+    zarr.create_array(store=str(tmp_path / "big.zarr"), data=stack.astype(">u2"), zarr_format=2)
+    values = zarr_io.open_zarr(tmp_path / "big.zarr").read()
+    assert values.dtype == np.dtype("=u2") and np.array_equal(values, stack)
+    zarr.create_array(store=str(tmp_path / "half.zarr"), data=stack.astype(np.float16))
+    stack16 = zarr_io.open_zarr(tmp_path / "half.zarr")
+    assert stack16.dtype == np.float32 and np.array_equal(stack16.read(), stack.astype(np.float16))
+
+
 def test_a_group_of_one_array_reads_it_and_one_of_two_names_them(tmp_path):
     stack = random_stack()
     group = zarr.open_group(str(tmp_path / "g.zarr"), mode="w")
