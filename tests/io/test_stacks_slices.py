@@ -247,7 +247,16 @@ def test_a_dicom_file_cut_short_after_it_was_opened_is_named(tmp_path):
     assert_refused_naming(tmp_path, paths[5].name)
 
 
-def test_enhanced_dicom_slabs(tmp_path):
-    write_enhanced(tmp_path / "enhanced.dcm", np.random.default_rng(8).integers(0, 2000, size=(5, 4, 6)),
-                   direction=stored(phantom(), "RPI")[2])
+@pytest.mark.parametrize("code, slope, intercept", [("LPS", 1, -1024), ("RPI", 0.5, 1.25), ("PIR", 1, 0)])
+def test_enhanced_dicom_slabs(tmp_path, code, slope, intercept):
+    values, spacing, direction = stored(phantom(), code)
+    write_enhanced(tmp_path / "enhanced.dcm", values, spacing, slope=slope, intercept=intercept, direction=direction)
     assert_slabs_are_the_volume(tmp_path)
+
+
+def test_an_enhanced_dicom_cut_short_after_it_was_opened_is_named(tmp_path):
+    path = write_enhanced(tmp_path / "enhanced.dcm", phantom(), intercept=0)
+    stack = io.open_stack(tmp_path)
+    path.write_bytes(path.read_bytes()[:-500])
+    with pytest.raises(InputError, match="DICOM file .*enhanced.dcm"):
+        read_all(stack)

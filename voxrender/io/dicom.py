@@ -13,6 +13,8 @@ import os
 import struct
 import warnings
 from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -121,11 +123,9 @@ def open_dicom(folder, series=None):
     chosen, aside = _series_files(folder, identity_progress, series)
     if _multiframe(chosen, folder):
         with _header_values(folder):
-            volume = _read_multiframe(chosen[0][0])                  # one file: read whole (see its notes)
-        volume.meta.update(_beside(aside))
-        values = volume.values
-        return Stack(values.shape, values.dtype, lambda z0, z1: values[z0:z1].copy(), volume.spacing,
-                     volume.direction, volume.meta)
+            stack = _open_multiframe(chosen[0][0])
+        stack.meta.update(_beside(aside))
+        return stack
     items, spacing, meta, direction = _slices_placed(folder, chosen, aside)
     told = [_told_type(ds) for _, ds in items]
     found = {_slice_values(f).dtype for (f, _), dtype in zip(items, told, strict=True) if dtype is None}
@@ -320,10 +320,12 @@ def _dicom_pixels(path):
     return ds, data
 
 
-def _check_pixels_fit(ds, path):
-    """Refuse, before decoding them, pixels the free memory cannot hold (a compressed file can promise any size)."""
+def _check_pixels_fit(ds, path, frames=None):
+    """Refuse, before decoding them, pixels the free memory cannot hold (a compressed file can promise any size):
+    all of them, or so many ``frames`` at a time.
+    """
     samples = int(ds.get("SamplesPerPixel", 1) or 1)
-    shape = [_frames(ds), int(ds.Rows), int(ds.Columns)] + [samples] * (samples > 1)
+    shape = [frames or _frames(ds), int(ds.Rows), int(ds.Columns)] + [samples] * (samples > 1)
     dtype = {8: np.uint8, 32: np.uint32, 64: np.float64}.get(int(ds.get("BitsAllocated", 16) or 16), np.uint16)
     check_fits(shape, dtype, path)
 
@@ -375,8 +377,9 @@ def _rescaled_type(ends, slope, intercept, kind):
     return np.dtype(np.float32)
 
 
-def _told_type(ds):
-    """The type :func:`_rescale` gives the pixels of the slice ``ds`` when its header alone tells it: float32
+def _told_type(ds, slope=None, intercept=None):
+    """The type :func:`_rescale` gives the pixels of the slice ``ds`` (rescaled by its own slope and intercept, or
+    those given: a frame's) when its header alone tells it: float32
     for a fractional rescale, int16 when every value its stored bits can hold rescales into int16; else ``None``
     (the type hangs on the values: only their range tells).
     """
@@ -384,7 +387,7 @@ def _told_type(ds):
         grey = int(ds.get("SamplesPerPixel", 1) or 1) == 1
         allocated, bits = int(ds.BitsAllocated), int(ds.BitsStored)        # 32 or 64 allocated: maybe floats
         signed = int(ds.get("PixelRepresentation", 0) or 0) == 1
-        slope, intercept = _slope_intercept(ds)
+        slope, intercept = _slope_intercept(ds, slope, intercept)
     except (AttributeError, KeyError, ValueError, TypeError, InputError):      # the pixels' reading will say
         return None
     if not grey or allocated not in (8, 16) or not 1 <= bits <= allocated or \
@@ -411,9 +414,88 @@ def _read_multiframe(path):
     or frames in file order (cine, secondary capture) when nothing places them.
     """
     ds, data = _dicom_pixels(path)
+    placed = _frames_placed(path, ds)
+    data = data.reshape((len(placed.order),) + data.shape[-(data.ndim - 1):]) if data.ndim > 2 else data[None]
+    values = np.stack([placed.values(data[k], k) for k in placed.order])
+    return Volume(values, placed.spacing, placed.meta, placed.direction)
+
+
+def _open_multiframe(path):
+    """One multi-frame DICOM file as a :class:`~voxrender.io._stack.Stack`: its header read now, its grey frames a
+    slab at a time (colour frames, rare in a volume, are read whole now).
+    """
+    import pydicom
+
+    damaged = damaged_file_errors()
+    try:
+        with _BoundedFile(path) as stream:
+            ds = pydicom.dcmread(stream, stop_before_pixels=True, force=True)
+    except damaged as exc:
+        raise InputError(f"cannot read DICOM file {path}: {first_line(exc)}") from None
+    placed = _frames_placed(path, ds)
+    if int(ds.get("SamplesPerPixel", 1) or 1) > 1:
+        values = _read_multiframe(path).values
+        return Stack(values.shape, values.dtype, lambda z0, z1: values[z0:z1].copy(), placed.spacing,
+                     placed.direction, placed.meta)
+    count = len(placed.order)
+    told = [_told_type(ds, *placed.rescale[k]) for k in range(count)]
+    found = {values.dtype for _, values in _frames_read(path, ds, placed, [k for k in range(count) if told[k] is None])}
+    dtype = np.result_type(*({dtype for dtype in told if dtype is not None} | found))   # as np.stack widens
+
+    def read_slices(z0, z1):
+        out = np.empty((z1 - z0, int(ds.Rows), int(ds.Columns)), dtype)
+        for k, (frame, values) in enumerate(_frames_read(path, ds, placed, placed.order[z0:z1])):
+            place_slice(out, k, values, f"frame {frame} of {path.name}", f"frame {placed.order[0]}")
+        return out
+
+    return Stack((count, int(ds.Rows), int(ds.Columns)), dtype, read_slices, placed.spacing, placed.direction,
+                 placed.meta)
+
+
+def _frames_read(path, ds, placed, frames):
+    """``(frame, values)`` for the ``frames`` (numbers in the file) of the multi-frame file ``path`` whose header is
+    ``ds``, decoded one at a time by pydicom and rescaled.
+    """
+    from pydicom.pixels import iter_pixels
+
+    frames = [int(k) for k in frames]
+    if not frames:                                      # iter_pixels takes no frames to mean all of them
+        return
+    damaged = damaged_file_errors()
+    _check_pixels_fit(ds, path, frames=1)
+    try:
+        with _BoundedFile(path) as stream:
+            for k, data in zip(frames, iter_pixels(stream, indices=frames), strict=True):
+                yield k, placed.values(data, k)
+    except InputError:
+        raise
+    except damaged as exc:
+        raise InputError(f"cannot read the pixels of DICOM file {path}{_compression(ds, damaged)}: "
+                         f"{first_line(exc)}") from None
+
+
+@dataclass
+class _Frames:
+    """The frames of a multi-frame file as its header places them: ``order``, the frame numbers in slice order;
+    ``rescale``, each frame's (slope, intercept), ``None`` for the file's; ``values(frame, k)``, the slice of
+    frame ``k``'s pixels.
+    """
+
+    path: Path
+    ds: object
+    order: np.ndarray
+    rescale: list
+    spacing: tuple
+    meta: dict
+    direction: np.ndarray | None
+
+    def values(self, data, k):
+        return _rescale(to_grey(data, self.path.name), self.ds, *self.rescale[k])
+
+
+def _frames_placed(path, ds):
+    """Where the header ``ds`` of the multi-frame file ``path`` places its frames (see :class:`_Frames`)."""
     count = _frames(ds)
-    data = data.reshape((count,) + data.shape[-(data.ndim - 1):]) if data.ndim > 2 else data[None]
-    frames = [to_grey(frame, path.name) for frame in data]
     shared = ds.SharedFunctionalGroupsSequence[0] if "SharedFunctionalGroupsSequence" in ds else None
     per_frame = list(ds.PerFrameFunctionalGroupsSequence) if "PerFrameFunctionalGroupsSequence" in ds else None
 
@@ -445,19 +527,17 @@ def _read_multiframe(path):
         meta.update(sorted_by="GridFrameOffsetVector", units=str(getattr(ds, "DoseUnits", "")) or "stored values")
     else:
         warnings.warn(f"{path}: nothing places its {count} frames; they are taken in file order, 1 mm apart",
-                      stacklevel=3)
+                      stacklevel=4)
         positions, rescale, orientation = None, [(None, None)] * count, None
         meta["sorted_by"] = "file order"
-    values = np.stack([_rescale(frame, ds, *rescale[k]) for k, frame in enumerate(frames)])
     row_spacing, column_spacing = _pixel_spacing(ds, path, pixel)
-    direction, spacing_z = None, 1.0
+    direction, spacing_z, order = None, 1.0, np.arange(count)
     if positions is not None:
         orientation = np.array([float(v) for v in orientation])
         normal = np.cross(orientation[:3], orientation[3:])
         along = np.array([np.dot(np.asarray(p, float), normal) for p in positions])
         order = np.argsort(along, kind="stable")
-        values, along = values[order], along[order]
-        steps = np.diff(along)
+        steps = np.diff(along[order])
         if len(steps) and np.any(np.isclose(steps, 0)):
             raise InputError(f"{path}: two frames share one position; the file mixes acquisitions")
         spacing_z = float(np.median(steps)) if len(steps) else float(getattr(ds, "SliceThickness", 1) or 1)
@@ -468,7 +548,8 @@ def _read_multiframe(path):
         meta["units"] = "HU"
     meta.setdefault("units", "stored values")
     meta.update(_padding(ds))
-    return Volume(values, check_spacing((column_spacing, row_spacing, abs(spacing_z)), path), meta, direction)
+    spacing = check_spacing((column_spacing, row_spacing, abs(spacing_z)), path)
+    return _Frames(path, ds, order, rescale, spacing, meta, direction)
 
 
 def _beside(aside):
