@@ -1,0 +1,71 @@
+"""The octree build's memory estimate (octree.build_bytes) bounds what the build takes, and check_build_memory
+refuses an object whose estimate is over the limit, before building anything."""
+
+import gc
+import tracemalloc
+
+import numpy as np
+import pytest
+
+from voxrender import octree
+from voxrender.errors import InputError
+from voxrender.segments import encode
+
+
+def _objects():
+    rng = np.random.default_rng(7)
+    n = 40
+    z, y, x = np.indices((n, n, n)) - (n - 1) / 2
+    steps = np.arange(n) * 0.5
+    gyroid = (np.sin(steps)[None, None] * np.cos(steps)[None, :, None]
+              + np.sin(steps)[None, :, None] * np.cos(steps)[:, None, None]
+              + np.sin(steps)[:, None, None] * np.cos(steps)[None, None])
+    return {"ball": x ** 2 + y ** 2 + z ** 2 <= (0.4 * n) ** 2,
+            "box": np.pad(np.ones((n // 2, n - 3, n - 5), bool), ((n // 4, n // 4), (1, 2), (2, 3))),
+            "gyroid": gyroid > 0.3,
+            "noise": rng.random((n, n, n)) < 0.5,
+            "sparse noise": rng.random((n, n, n)) < 0.01}
+
+
+def _build_peak(segments):
+    """The peak of NumPy's allocations while the octree, its linear octree and its face adjacency are built."""
+    gc.collect()
+    tracemalloc.start()
+    try:
+        octree.sections(octree.build_from_segments(segments))
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+@pytest.mark.parametrize("name", list(_objects()))
+def test_estimate_bounds_the_build(name):
+    segments = encode(_objects()[name])
+    peak = _build_peak(segments)
+    estimate = octree.build_bytes(segments)
+    assert peak <= estimate <= 4 * peak, (name, peak, estimate)
+
+
+def test_estimate_grows_with_threads_and_runs():
+    segments = encode(_objects()["noise"])
+    assert octree.build_bytes(segments, threads=1) < octree.build_bytes(segments, threads=4)
+    assert octree.build_bytes(segments) > octree.build_bytes(encode(_objects()["box"]))
+
+
+def test_check_refuses_over_and_accepts_under_the_estimate():
+    segments = encode(_objects()["gyroid"])
+    estimate = octree.build_bytes(segments)
+    octree.check_build_memory(segments, estimate)
+    octree.check_build_memory(segments, 2 * estimate)
+    with pytest.raises(InputError) as refusal:
+        octree.check_build_memory(segments, estimate - 1)
+    assert refusal.value.parameter == "max_memory"
+    message = refusal.value.message
+    assert "binned by 2" in message and "ftb, btf, raycast" in message and "allow more memory" in message
+    assert "kB" in message or "MB" in message
+
+
+def test_refusal_names_sizes_in_words():
+    segments = encode(_objects()["ball"])
+    with pytest.raises(InputError, match=r"about [\d.]+ [kMG]B to build, more than the 1 kB of memory allowed"):
+        octree.check_build_memory(segments, 1000)
