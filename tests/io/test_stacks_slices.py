@@ -60,6 +60,15 @@ def test_raw_slabs_across_files_holding_several_slices(tmp_path):
     assert stack.stored_bytes == values.nbytes
 
 
+def test_half_floats_become_floats_as_read_volume_makes_them(tmp_path):
+    values = np.random.default_rng(4).random((4, 5, 6)).astype(np.float16)
+    values.tofile(tmp_path / "half.raw")
+    stack = assert_slabs_are_the_volume(tmp_path / "half.raw", raw=io.RawLayout(6, 5, np.dtype("<f2")))
+    assert stack.dtype == np.float32 and stack.stored_bytes == values.nbytes
+    tifffile.imwrite(tmp_path / "half.tif", values, photometric="minisblack")
+    assert assert_slabs_are_the_volume(tmp_path / "half.tif").dtype == np.float32
+
+
 def test_a_raw_file_cut_short_after_it_was_opened_is_named(tmp_path):
     folder = tmp_path / "slices"
     folder.mkdir()

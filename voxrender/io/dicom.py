@@ -138,7 +138,7 @@ def open_dicom(folder, series=None):
             place_slice(out, k, _slice_values(f), f.name, items[0][0].name)
         return out
 
-    return Stack(shape, dtype, read_slices, spacing, direction, meta)
+    return Stack(shape, dtype, read_slices, spacing, direction, meta, sum(f.stat().st_size for f, _ in items))
 
 
 def _series_files(folder, progress, series):
@@ -449,7 +449,7 @@ def _open_multiframe(path):
         return out
 
     return Stack((count, int(ds.Rows), int(ds.Columns)), dtype, read_slices, placed.spacing, placed.direction,
-                 placed.meta)
+                 placed.meta, path.stat().st_size)
 
 
 def _frames_read(path, ds, placed, frames):

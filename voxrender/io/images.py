@@ -51,7 +51,8 @@ def open_images(folder):
             place_slice(out, k, _read_image(f), f.name, files[0].name)
         return out
 
-    return Stack((len(files), *first.shape), dtype, read_slices, (1.0, 1.0, 1.0), None, _meta(files))
+    return Stack((len(files), *first.shape), dtype, read_slices, (1.0, 1.0, 1.0), None, _meta(files),
+                 sum(f.stat().st_size for f in files))
 
 
 def _image_files(folder):

@@ -9,6 +9,7 @@ import numpy as np
 from ..errors import InputError
 from ._shared import NOTE_SUFFIXES, Reader, Volume, check_fits, files_in
 from ._stack import Stack
+from .images import stack_type
 
 # Files that sit beside raw slices but are not slices: headers, and notes.
 NOT_SLICES = {".nhdr", ".nrrd", ".mhd", ".hdr"} | NOTE_SUFFIXES
@@ -33,7 +34,7 @@ def open_raw(path, raw):
     files, counts = _slice_files(path, raw)
     starts = np.cumsum([0, *counts])                  # the first slice of each file, and the end of the last
     shape = (int(starts[-1]), int(raw.height), int(raw.width))
-    dtype = np.dtype(raw.dtype).newbyteorder("=")
+    dtype = stack_type(raw.dtype, path)                # 16-bit floats become 32-bit ones, as in read_volume
 
     def read_slices(z0, z1):
         out = np.empty((z1 - z0, *shape[1:]), dtype)
@@ -43,7 +44,7 @@ def open_raw(path, raw):
             out[lo - z0:hi - z0] = _slices_of(files[k], raw, lo - starts[k], hi - lo)
         return out
 
-    return Stack(shape, dtype, read_slices, (1.0, 1.0, 1.0), None, _meta(counts))
+    return Stack(shape, dtype, read_slices, (1.0, 1.0, 1.0), None, _meta(counts), shape[0] * raw.slice_bytes)
 
 
 def _slice_files(path, raw):

@@ -48,7 +48,7 @@ def open_tiff(path):
 
     spacing, spacing_from = _tiff_spacing(path)
     shape = pages.shape[:3] if colour else pages.shape
-    return Stack(shape, dtype, read_slices, spacing, None, {"spacing_from": spacing_from},
+    return Stack(shape, dtype, read_slices, spacing, None, {"spacing_from": spacing_from}, path.stat().st_size,
                  sequential=pages.offsets is None and pages.keys is None)
 
 
