@@ -69,3 +69,31 @@ def test_refusal_names_sizes_in_words():
     segments = encode(_objects()["ball"])
     with pytest.raises(InputError, match=r"about [\d.]+ [kMG]B to build, more than the 1 kB of memory allowed"):
         octree.check_build_memory(segments, 1000)
+
+
+# Rendering in bounded memory: ftb reads the runs a group of slabs at a time.
+
+@pytest.mark.parametrize("seed", range(6))
+def test_ftb_in_groups_of_slabs_is_the_pass_in_one(seed, monkeypatch):
+    """Groups of one or a few slabs give the depth image, the item buffer's boxes and every count of one pass."""
+    from voxrender._render import ftb
+    from voxrender._render.clip import Clip
+    from voxrender._render.preimage import render_preimage
+    from voxrender.view import View
+
+    rng = np.random.default_rng(seed)
+    encoded = encode(rng.random((9, 11, 14)) < rng.uniform(0.1, 0.6))
+    view = View(*rng.uniform(-180, 180, 2), 0, (26, 28), float(rng.uniform(0.5, 3)))
+    clip = Clip(x=(1, 12), z=(None, 7), cut_depth=float(rng.uniform(-4, 1))) if seed % 2 else None
+    whole, whole_stats, (whole_owner, whole_boxes) = ftb.render_ftb(encoded, view, clip=clip, items=True)
+    turned = render_preimage(ftb.render_ftb, encoded, View(view.alpha, view.beta, 30, (20, 20), 1.0), clip=clip)
+    monkeypatch.setattr(ftb, "_SPANS_AT_ONCE", int(rng.integers(1, 60)))
+    assert len(ftb._slab_groups(encoded, ftb._plan_screen(encoded, view))) > 3
+    parts, parts_stats, (parts_owner, parts_boxes) = ftb.render_ftb(encoded, view, clip=clip, items=True)
+    assert parts_stats == whole_stats
+    assert np.array_equal(parts, whole)
+    lit = whole_owner >= 0
+    assert np.array_equal(parts_owner >= 0, lit)
+    assert np.array_equal(parts_boxes[parts_owner[lit]], whole_boxes[whole_owner[lit]])
+    turned_parts = render_preimage(ftb.render_ftb, encoded, View(view.alpha, view.beta, 30, (20, 20), 1.0), clip=clip)
+    assert np.array_equal(turned_parts[0], turned[0]) and turned_parts[1] == turned[1]

@@ -168,15 +168,17 @@ def _stable_order(*keys):
     return np.argsort(packed, kind="stable")
 
 
-def _front_to_back_runs(segments, plan, clip):
-    """Every run, in the order the paper reads them: slabs, rows, then x front to back.
+def _front_to_back_runs(segments, plan, clip, outer=slice(None)):
+    """Every run of the slabs ``plan.outer_order[outer]``, in the order the paper reads them: slabs, rows, then x
+    front to back.
 
-    Returns arrays per run: slab position, row position (global, front to back), z, y, start, end.
+    Returns arrays per run: slab position, row position (front to back within these slabs), z, y, start, end.
     """
     nz, ny, _ = segments.shape
-    outer, inner = np.meshgrid(plan.outer_order, plan.inner_order, indexing="ij")
+    outer_order = plan.outer_order[outer]
+    outer, inner = np.meshgrid(outer_order, plan.inner_order, indexing="ij")
     z, y = (outer, inner) if plan.outer_is_z else (inner, outer)
-    slab = np.broadcast_to(np.arange(len(plan.outer_order))[:, None], outer.shape).ravel()
+    slab = np.broadcast_to(np.arange(len(outer_order))[:, None], outer.shape).ravel()
     rows = (z * ny + y).ravel()
     offsets = np.asarray(segments.offsets)
     counts = offsets[rows + 1] - offsets[rows]
@@ -186,13 +188,31 @@ def _front_to_back_runs(segments, plan, clip):
     if not plan.x_ascending:
         rank = counts[owner] - 1 - rank
     index = offsets[rows][owner] + rank
-    starts = np.asarray(segments.starts)[index].astype(np.int64)
-    ends = np.asarray(segments.ends)[index].astype(np.int64)
+    starts = np.asarray(segments.starts[index], np.int64)        # only these runs are read from a mapped file
+    ends = np.asarray(segments.ends[index], np.int64)
     run_z, run_y = rows[owner] // ny, rows[owner] % ny
     if clip is not None and clip.active:
         keep, starts, ends = clip.apply_runs(run_z, run_y, starts, ends, plan.view, segments.shape)
         owner, run_z, run_y, starts, ends = owner[keep], run_z[keep], run_y[keep], starts[keep], ends[keep]
     return slab[owner], owner, run_z, run_y, starts, ends
+
+
+_SPANS_AT_ONCE = 1 << 21      # about this many (run, scanline) spans are merged from one read of the runs
+
+
+def _slab_groups(segments, plan):
+    """The slabs (positions in ``plan.outer_order``) cut into groups of consecutive slabs of about
+    :data:`_SPANS_AT_ONCE` spans each (at least one slab), so that the runs read at once, and the arrays of their
+    spans, are bounded by that and not by the object.  Returns the bounds ``[b0, b1, ...]`` of the groups.
+    """
+    nz, ny, _ = segments.shape
+    per_row = np.diff(np.asarray(segments.offsets)).reshape(nz, ny)
+    runs = per_row.sum(axis=1 if plan.outer_is_z else 0)[plan.outer_order]
+    matrix = plan.matrix
+    lines_per_run = (abs(matrix[1, 1]) + abs(matrix[1, 2])) * plan.view.scale + 2     # scanlines a run's box spans
+    spans = np.cumsum(runs * lines_per_run)
+    cuts = np.searchsorted(spans, np.arange(1, int(spans[-1] // _SPANS_AT_ONCE) + 1) * _SPANS_AT_ONCE)
+    return np.unique(np.concatenate([[0], cuts + 1, [len(runs)]]).clip(0, len(runs)))
 
 
 def _remove_painted(lo, hi, k, piece_lo, piece_hi):
@@ -318,13 +338,43 @@ def render_ftb(segments, view, progress=None, clip=None, items=False):
     depth = np.full(height * width, np.inf)
     owner_image = np.full(height * width, -1, np.int64)
     lines, first, last = _initial_unlit(plan, _object_box(segments, clip))
-    lo, hi = lines * stride + first + 1, lines * stride + last + 1
-    stats["unlit_segments_start"] = stats["unlit_segments_peak"] = len(lo)
+    screen = (lines * stride + first + 1, lines * stride + last + 1)
+    stats["unlit_segments_start"] = stats["unlit_segments_peak"] = len(screen[0])
+    cases = np.zeros(9, np.int64)
+    boxes, boxes_before = [], 0
+    # The slabs a group at a time, front to back: the dynamic screen goes on from one group to the next, so the
+    # picture and the counts are those of one pass, while only one group's runs and spans are in memory.
+    bounds = _slab_groups(segments, plan)
+    group_of_last_slab = dict(zip((bounds[1:] - 1).tolist(), bounds[:-1].tolist(), strict=True))
+    positions = range(len(plan.outer_order))
+    for position in (progress(positions, len(positions), "ftb") if progress else positions):
+        if position in group_of_last_slab:
+            screen, lit = _render_slabs(segments, plan, clip, slice(group_of_last_slab[position], position + 1),
+                                        screen, stats, cases, depth, owner_image, boxes_before)
+            boxes.append(lit)
+            boxes_before += len(lit)
+    stats["unlit_segments_end"] = len(screen[0])
+    stats["cases"] = {str(c): int(cases[c]) for c in CASES}
+    depth = depth.reshape(height, width).astype(np.float32)
+    if items:
+        return depth, stats, (owner_image.reshape(height, width),
+                              np.concatenate(boxes) if boxes else np.zeros((0, 4)))
+    return depth, stats
 
-    slab, row, z, y, starts, ends = _front_to_back_runs(segments, plan, clip)
-    stats["slices_read"] = _distinct_count(slab)          # both come in order: count their changes
-    stats["rows_read"] = _distinct_count(row)
-    stats["segments_read"] = len(starts)
+
+def _render_slabs(segments, plan, clip, outer, screen, stats, cases, depth, owner_image, boxes_before):
+    """Merge the runs of the slabs ``plan.outer_order[outer]`` into the dynamic screen ``(lo, hi)``, front to
+    back, painting ``depth`` and ``owner_image`` and adding to ``stats`` and ``cases``.  Returns the screen left
+    and the boxes (centre x, y, z and half-length) of the runs that lit pixels, numbered in ``owner_image`` from
+    ``boxes_before`` on.
+    """
+    lo, hi = screen
+    width = plan.size[1]
+    stride = width + 2
+    slab, row, z, y, starts, ends = _front_to_back_runs(segments, plan, clip, outer)
+    stats["slices_read"] += _distinct_count(slab)          # both come in order: count their changes
+    stats["rows_read"] += _distinct_count(row)
+    stats["segments_read"] += len(starts)
     xc, yc, zc, half_x = plan.centres(z, y, starts, ends)
     line_first, line_last = plan.scanlines(yc)
     line, run = ranges(line_first, np.maximum(line_last - line_first + 1, 0), owners=True)
@@ -352,10 +402,8 @@ def render_ftb(segments, view, progress=None, clip=None, items=False):
     key_first, key_last = line * stride + span_first + 1, line * stride + span_last + 1
     span_full = np.zeros(len(line), bool)
     slab_ends = set((np.flatnonzero(np.concatenate([span_slab[1:] != span_slab[:-1], [True]])) + 1).tolist())
-    cases = np.zeros(9, np.int64)
     painted_spans, painted_lo, painted_hi = [], [], []
-    steps = range(len(step_bounds) - 1)
-    for s in (progress(steps, len(steps), "ftb") if progress else steps):
+    for s in range(len(step_bounds) - 1):
         a, b = step_bounds[s], step_bounds[s + 1]
         counts, span_full[a:b], (span, piece_lo, piece_hi), lo, hi = _merge_batch(
             lo, hi, line[a:b], key_first[a:b], key_last[a:b], stride)
@@ -365,10 +413,9 @@ def render_ftb(segments, view, progress=None, clip=None, items=False):
         painted_hi.append(piece_hi)
         if b in slab_ends:
             stats["unlit_segments_peak"] = max(stats["unlit_segments_peak"], len(lo))
-    stats["unlit_segments_end"] = len(lo)
-    stats["cases"] = {str(c): int(cases[c]) for c in CASES}
 
     # Every lit pixel was painted once; its depth is where its ray enters the box of the span that lit it.
+    lit_runs = np.zeros(0, np.int64)
     if painted_spans:
         piece_lo, piece_hi = np.concatenate(painted_lo), np.concatenate(painted_hi)
         keys, piece = ranges(piece_lo, piece_hi - piece_lo + 1, owners=True)
@@ -377,23 +424,21 @@ def render_ftb(segments, view, progress=None, clip=None, items=False):
         walk_x = keys - pixel_line * stride - 1
         pixels = pixel_line * width + plan.column(walk_x)
         depth[pixels] = plan.depth(pixel_line, walk_x, xc[r], yc[r], zc[r], half_x[r])
-        owner_image[pixels] = r
-        stats["pixels_lit"] = len(keys)
+        lit_runs, numbers = np.unique(r, return_inverse=True)      # the item buffer keeps only the runs that lit
+        owner_image[pixels] = boxes_before + numbers
+        stats["pixels_lit"] += len(keys)
 
     # A call is merged unless its scanline was full; a row is skipped when all its calls were.
     merged = ~span_full
-    stats["segments_merged"] = int(merged.sum())
+    stats["segments_merged"] += int(merged.sum())
     call_full = np.zeros(int(call.max()) + 1 if len(call) else 0, bool)
     call_full[call[span_full]] = True
     call_row = np.zeros(len(call_full), np.int64)
     call_row[call] = row[run]
-    stats["merge_calls"] = len(call_full) - int(call_full.sum())
-    stats["scanlines_skipped_full"] = int(call_full.sum())
+    stats["merge_calls"] += len(call_full) - int(call_full.sum())
+    stats["scanlines_skipped_full"] += int(call_full.sum())
     calls_per_row = np.bincount(call_row)
     full_per_row = np.bincount(call_row[call_full], minlength=len(calls_per_row))
-    stats["rows_skipped_full"] = int(((calls_per_row > 0) & (full_per_row == calls_per_row)).sum())
-    depth = depth.reshape(height, width).astype(np.float32)
-    if items:
-        boxes = np.stack([(starts + ends) / 2, y, z, half_x], axis=1).astype(float)
-        return depth, stats, (owner_image.reshape(height, width), boxes)
-    return depth, stats
+    stats["rows_skipped_full"] += int(((calls_per_row > 0) & (full_per_row == calls_per_row)).sum())
+    boxes = np.stack([(starts[lit_runs] + ends[lit_runs]) / 2, y[lit_runs], z[lit_runs], half_x[lit_runs]], axis=1)
+    return (lo, hi), boxes.astype(float)
