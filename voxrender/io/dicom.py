@@ -379,9 +379,9 @@ def _rescaled_type(ends, slope, intercept, kind):
 
 def _told_type(ds, slope=None, intercept=None):
     """The type :func:`_rescale` gives the pixels of the slice ``ds`` (rescaled by its own slope and intercept, or
-    those given: a frame's) when its header alone tells it: float32
-    for a fractional rescale, int16 when every value its stored bits can hold rescales into int16; else ``None``
-    (the type hangs on the values: only their range tells).
+    those given: a frame's) when its header alone tells it: float32 for a fractional rescale, int16 when every value
+    its stored bits can hold rescales into int16; else ``None`` (the type hangs on the values: only their range
+    tells).  pydicom keeps the stored values within their bits.
     """
     try:
         grey = int(ds.get("SamplesPerPixel", 1) or 1) == 1
@@ -477,8 +477,8 @@ def _frames_read(path, ds, placed, frames):
 @dataclass
 class _Frames:
     """The frames of a multi-frame file as its header places them: ``order``, the frame numbers in slice order;
-    ``rescale``, each frame's (slope, intercept), ``None`` for the file's; ``values(frame, k)``, the slice of
-    frame ``k``'s pixels.
+    ``rescale``, each frame's (slope, intercept), ``None`` for the file's; ``values(data, k)``, the slice of the
+    pixels ``data`` of frame ``k`` (grey, rescaled).
     """
 
     path: Path
