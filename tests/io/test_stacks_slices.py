@@ -181,6 +181,27 @@ def test_a_tiff_cut_short_is_named(tmp_path, compression):
     assert_refused_naming(path, "v.tif")                                  # cut before it is opened
 
 
+@pytest.mark.parametrize("format", ["raw", "images", "tiff", "tiff-zlib"])
+def test_a_stack_larger_than_the_free_memory_opens(tmp_path, monkeypatch, format):
+    values = random_stack((6, 20, 30))
+    options = {}
+    if format == "raw":
+        path, options = tmp_path / "v.raw", {"raw": io.RawLayout(30, 20, np.dtype("<u2"))}
+        values.tofile(path)
+    elif format == "images":
+        path = tmp_path
+        for z, plane in enumerate(values):
+            iio.imwrite(tmp_path / f"{z}.png", plane)
+    else:
+        path = tmp_path / "v.tif"
+        tifffile.imwrite(path, values, photometric="minisblack", compression="zlib" if "zlib" in format else None)
+    monkeypatch.setattr(_shared, "free_memory", lambda: 2000)                     # a slice, not the stack
+    with pytest.raises(InputError, match="more than the 2 kB of memory free"):
+        io.read_volume(path, **options)
+    stack = io.open_stack(path, **options)
+    np.testing.assert_array_equal(np.concatenate([stack.read_slices(z, z + 1) for z in range(6)]), values)
+
+
 # ---------------------------------------------------------------- DICOM
 
 
