@@ -97,3 +97,26 @@ def test_ftb_in_groups_of_slabs_is_the_pass_in_one(seed, monkeypatch):
     assert np.array_equal(parts_boxes[parts_owner[lit]], whole_boxes[whole_owner[lit]])
     turned_parts = render_preimage(ftb.render_ftb, encoded, View(view.alpha, view.beta, 30, (20, 20), 1.0), clip=clip)
     assert np.array_equal(turned_parts[0], turned[0]) and turned_parts[1] == turned[1]
+
+
+# raycast steps its rays through a bitmap made from the runs a slice at a time, not through a bool volume.
+
+@pytest.mark.parametrize("shape", [(5, 7, 9), (6, 9, 64), (7, 5, 130), (9, 13, 67)])
+def test_bitmap_reads_dilates_and_blocks_as_the_bool_mask(shape):
+    from voxrender._render.clip import Clip
+    from voxrender._render.raycast import Bitmap, empty_space, proximity_band
+    from voxrender.view import View
+
+    rng = np.random.default_rng(sum(shape))
+    mask = rng.random(shape) < 0.05
+    mask[0, 0, -1] = mask[-1, -1, 0] = True                  # the corners, where padding and carries are
+    bits = Bitmap.of_segments(encode(mask))
+    z, y, x = np.indices(shape).reshape(3, -1)
+    assert np.array_equal(bits[z, y, x], mask[z, y, x])
+    assert np.array_equal(proximity_band(bits)[z, y, x], proximity_band(mask)[z, y, x])
+    for block in (2, 4, 8):
+        assert np.array_equal(empty_space(bits, block), empty_space(mask, block))
+    view = View(30, 20, 0, (16, 16), 1.0)
+    clip = Clip(x=(1, shape[2] - 2), y=(2, None), cut_depth=-1.5)
+    assert np.array_equal(Bitmap.of_segments(encode(mask), view, clip)[z, y, x],
+                          clip.apply_mask(mask, view)[z, y, x])
