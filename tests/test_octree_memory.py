@@ -120,3 +120,20 @@ def test_bitmap_reads_dilates_and_blocks_as_the_bool_mask(shape):
     clip = Clip(x=(1, shape[2] - 2), y=(2, None), cut_depth=-1.5)
     assert np.array_equal(Bitmap.of_segments(encode(mask), view, clip)[z, y, x],
                           clip.apply_mask(mask, view)[z, y, x])
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_a_clipped_octree_is_built_from_the_clipped_runs_as_from_the_clipped_mask(seed):
+    from voxrender._render.clip import Clip
+    from voxrender._render.octree_btf import _clipped
+    from voxrender.view import View
+
+    rng = np.random.default_rng(seed)
+    mask = rng.random((9, 11, 14)) < 0.4
+    view = View(*rng.uniform(-180, 180, 3), (20, 20), 1.0)
+    clip = Clip(x=(int(rng.integers(0, 4)), int(rng.integers(8, 15))), z=(None, int(rng.integers(3, 9))),
+                cut_depth=float(rng.uniform(-4, 2)) if seed % 2 else None)
+    clipped = _clipped(encode(mask), view, clip)
+    assert np.array_equal(clipped.to_mask(), clip.apply_mask(mask, view))
+    from_runs, from_mask = octree.build_from_segments(clipped), octree.build(clip.apply_mask(mask, view))
+    assert np.array_equal(from_runs.color, from_mask.color) and np.array_equal(from_runs.origin, from_mask.origin)

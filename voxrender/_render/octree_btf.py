@@ -22,6 +22,7 @@ import time
 import numpy as np
 
 from .. import octree
+from ..segments import Segments
 from ..view import vpn_from_angles
 from .geometry import paint_boxes
 
@@ -67,8 +68,20 @@ def region_octree(segments, view, clip=None, tree=None):
     with active clip limits, the octree of the clipped object.
     """
     if clip is not None and clip.active:
-        return octree.build(clip.apply_mask(segments.to_mask(), view))
+        return octree.build_from_segments(_clipped(segments, view, clip))
     return tree if tree is not None else octree.build_from_segments(segments)
+
+
+def _clipped(segments, view, clip):
+    """The runs of ``segments`` that ``clip`` keeps, cut as it cuts them (:meth:`Clip.apply_runs`): the clipped
+    object, made from the runs and not from a mask of the volume.
+    """
+    rows = segments.run_rows()
+    ny = segments.shape[1]
+    keep, starts, ends = clip.apply_runs(rows // ny, rows % ny, segments.starts, segments.ends, view, segments.shape)
+    offsets = np.zeros(len(segments.offsets), np.int64)
+    np.cumsum(np.bincount(rows[keep], minlength=len(offsets) - 1), out=offsets[1:])
+    return Segments(segments.shape, starts[keep].astype(np.int32), ends[keep].astype(np.int32), offsets)
 
 
 def _new_stats(tree):
