@@ -205,3 +205,13 @@ def test_cut_faces_take_their_own_normal_and_natural_surfaces_keep_the_gradient(
     assert np.allclose(got, (0, 0, -1), atol=1e-6)
     unknown = normals.cut_normals(view, points, mask.shape, clip=cut)
     assert np.isnan(unknown).all()
+
+
+def test_the_dense_sobel_of_a_porous_band_is_the_sampled_one_to_the_last_bit():
+    from voxrender.normals import SOBEL, SOBEL_1D, _dense_sobel_at, _edge_sampler, _gradient_of_samples
+
+    z, y, x = np.mgrid[:9, :12, :14]
+    grid = (30000 + 30000 * np.sin(x / 1.7) * np.cos(y / 2.1 + z / 1.3)).astype(np.uint16)   # the far ends of 16 bits
+    voxels = normals.band_voxels(grid > 30000)
+    expected = _gradient_of_samples(_edge_sampler(grid), np.stack(voxels[::-1], axis=1), *SOBEL)
+    assert np.array_equal(_dense_sobel_at(grid, voxels, *SOBEL_1D, voxels_at_once=40), expected)

@@ -283,43 +283,93 @@ def _gradient_of_samples(sample, centres, offsets, kernels):
 
 
 def _gradient_on_grid(grid, voxels, smooth, derive):
-    """The gradient at ``voxels`` (z, y, x arrays) of the values ``grid`` by a separable kernel: per row of the
-    stencil across x, the row's 1-D weighted sums, from one gather of its window of the grid; rows beyond the
+    """The gradient at ``voxels`` (z, y, x arrays) of the values ``grid`` by a separable kernel; rows beyond the
     grid's edge in y or z are the edge's.  The same as :func:`_gradient_of_samples` with the stencil's kernels,
-    which takes the few voxels whose window would run off the row's end; a fifth of its time, and no copy of
-    the grid.
+    which takes the few voxels whose window would run off the row's end, and no copy of the grid.
+
+    Each voxel's sum is taken in one fixed order, whatever else is computed beside it, so the normals of a slab
+    are the whole volume's to the last bit.  A band that is a large part of the grid (a porous object) takes the
+    gradient of every voxel of a few slices at a time instead (:func:`_dense_sobel_at`), which for 16-bit grey
+    values is exact, and so the same.
     """
     radius = len(smooth) // 2
     grid = np.ascontiguousarray(grid)
     nz, ny, nx = grid.shape
     z, y, x = voxels
+    if radius == 1 and _exact_in_float32(grid) and 8 * len(x) > grid.size:
+        return _dense_sobel_at(grid, voxels, smooth, derive)
     gradient = np.zeros((len(x), 3))
     inner = (x >= radius) & (x < nx - radius)
     if not inner.all():
-        top = np.array([nx, ny, nz]) - 1
-
-        def sample(points):
-            p = np.clip(points, 0, top)
-            return grid[p[:, 2], p[:, 1], p[:, 0]]
-
-        edge = np.stack([x, y, z], axis=1)[~inner]
-        gradient[~inner] = _gradient_of_samples(sample, edge, *_stencil(radius, smooth, derive))
+        gradient[~inner] = _gradient_of_samples(_edge_sampler(grid), np.stack([x, y, z], axis=1)[~inner],
+                                                *_stencil(radius, smooth, derive))
     z, y, x = z[inner], y[inner], x[inner]
     if not len(x):                  # rows shorter than the stencil (a volume one or two voxels wide in x)
         return gradient
     windows = np.lib.stride_tricks.sliding_window_view(grid.ravel(), 2 * radius + 1)     # x - r .. x + r
-    planes = [np.clip(z + d, 0, nz - 1) * ny for d in range(-radius, radius + 1)]
-    rows = [np.clip(y + d, 0, ny - 1) for d in range(-radius, radius + 1)]
-    weights = np.stack([derive, smooth], axis=1)
-    found = np.zeros((len(x), 3))
-    for dz, plane in enumerate(planes):
-        for dy, row in enumerate(rows):
-            values = windows[(plane + row) * nx + x - radius].astype(np.float64)
-            along, across = (values @ weights).T                 # the x-derivative and the x-smoothed sum
-            found[:, 0] += smooth[dy] * smooth[dz] * along
-            found[:, 1] += derive[dy] * smooth[dz] * across
-            found[:, 2] += smooth[dy] * derive[dz] * across
-    gradient[inner] = found
+    found = np.zeros((3, len(x)))
+    for dz in range(2 * radius + 1):
+        plane = np.clip(z + dz - radius, 0, nz - 1) * ny
+        for dy in range(2 * radius + 1):
+            values = windows[(plane + np.clip(y + dy - radius, 0, ny - 1)) * nx + x - radius].astype(np.float64)
+            along, across = np.zeros(len(x)), np.zeros(len(x))     # the x-derivative and the x-smoothed sum
+            for dx in range(2 * radius + 1):
+                if derive[dx]:
+                    along += derive[dx] * values[:, dx]
+                across += smooth[dx] * values[:, dx]
+            found[0] += (smooth[dy] * smooth[dz]) * along
+            if derive[dy]:
+                found[1] += (derive[dy] * smooth[dz]) * across
+            if derive[dz]:
+                found[2] += (smooth[dy] * derive[dz]) * across
+    gradient[inner] = found.T
+    return gradient
+
+
+def _edge_sampler(grid):
+    """``sample(points)`` of the grid's values, a point beyond its edge taking the edge's."""
+    top = np.array(grid.shape[::-1]) - 1
+
+    def sample(points):
+        p = np.clip(points, 0, top)
+        return grid[p[:, 2], p[:, 1], p[:, 0]]
+
+    return sample
+
+
+def _exact_in_float32(grid):
+    """Whether every partial sum of a Sobel gradient of ``grid`` is a whole number below 2**24: 16-bit integers
+    (32 times 65535 at most), for which float32 arithmetic in any order gives the float64 result.
+    """
+    return grid.dtype.kind in "uib" and grid.dtype.itemsize <= 2
+
+
+def _dense_sobel_at(grid, voxels, smooth, derive, voxels_at_once=1 << 23):
+    """:func:`_gradient_on_grid`'s Sobel gradient at ``voxels`` (sorted by z) of a 16-bit ``grid``, from the
+    gradient of every voxel of a few slices at a time (separable sums of shifted slices, float32, edges repeated).
+    """
+    nz, ny, nx = grid.shape
+    z, y, x = voxels
+    gradient = np.empty((len(x), 3))
+    per = max(1, voxels_at_once // (ny * nx))
+    bounds = np.searchsorted(z, np.arange(0, nz + per, per))
+    (s0, s1, s2), (d0, _, d2) = np.float32(smooth), np.float32(derive)       # float32 sums: no float64 copies
+    for k, first in enumerate(range(0, nz, per)):
+        lo, hi = bounds[k], bounds[k + 1]
+        if lo == hi:
+            continue
+        last = min(first + per, nz)
+        rows = np.clip(np.arange(first - 1, last + 1), 0, nz - 1)            # the slices, one beside on each side
+        part = np.pad(grid[rows].astype(np.float32), ((0, 0), (1, 1), (1, 1)), mode="edge")
+        across_z = s0 * part[:-2] + s1 * part[1:-1] + s2 * part[2:]
+        along_z = d0 * part[:-2] + d2 * part[2:]
+        across_zy = s0 * across_z[:, :-2] + s1 * across_z[:, 1:-1] + s2 * across_z[:, 2:]
+        along_y = d0 * across_z[:, :-2] + d2 * across_z[:, 2:]
+        along_z = s0 * along_z[:, :-2] + s1 * along_z[:, 1:-1] + s2 * along_z[:, 2:]
+        at = ((z[lo:hi] - first) * ny + y[lo:hi]) * nx + x[lo:hi]
+        gradient[lo:hi, 0] = (d0 * across_zy[:, :, :-2] + d2 * across_zy[:, :, 2:]).take(at)
+        for axis, values in ((1, along_y), (2, along_z)):
+            gradient[lo:hi, axis] = (s0 * values[:, :, :-2] + s1 * values[:, :, 1:-1] + s2 * values[:, :, 2:]).take(at)
     return gradient
 
 
