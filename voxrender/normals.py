@@ -296,7 +296,8 @@ def _gradient_on_grid(grid, voxels, smooth, derive):
     grid = np.ascontiguousarray(grid)
     nz, ny, nx = grid.shape
     z, y, x = voxels
-    if radius == 1 and _exact_in_float32(grid) and 8 * len(x) > grid.size:
+    spanned = (int(z.max()) - int(z.min()) + 1) * ny * nx if len(z) else 0       # the slices the band is in
+    if radius == 1 and _exact_in_float32(grid) and 8 * len(x) > spanned:
         return _dense_sobel_at(grid, voxels, smooth, derive)
     gradient = np.zeros((len(x), 3))
     inner = (x >= radius) & (x < nx - radius)
