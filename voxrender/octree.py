@@ -345,16 +345,16 @@ def build_from_segments(segments):
 
 
 # What the build of an octree takes (build_bytes), measured with tracemalloc on spheres, boxes, smooth porous,
-# gyroid and random objects of 32^3 to 256^3: the Morton codes of the voxels and their sort take about 64 bytes a
-# voxel; the nodes, the leaf pairs and the adjacency tables about 700 bytes a run on two threads (each further
-# thread of the face search holds its own temporaries: 100 bytes more, up to the six directions), more for a
-# sparse object, whose scattered runs each sit at the end of a path of grey nodes: a factor 1 + 2.5 log8(grid /
-# voxels).  The estimate is 1 to 2.3 times the measured peak on all of them.
+# gyroid and random objects of 32^3 to 256^3 and the CT head's bone and skin: the Morton codes of the voxels and
+# their sort take about 64 bytes a voxel; the nodes, the leaf pairs and the adjacency tables about 800 bytes a run
+# on two threads (each thread of the face search holds its own temporaries: 150 bytes a run each, up to the six
+# directions), more for scattered short runs, each at the end of its own path of grey nodes: a factor
+# 1 + 2.8 log8(grid / voxels) / (voxels per run).  The estimate is 1 to 2.3 times the measured peak on all of them.
 _BUILD_BYTES_PER_VOXEL = 64
 _BUILD_BYTES_PER_RUN = 500
-_BUILD_BYTES_PER_RUN_AND_THREAD = 100
-_BUILD_SPARSE_FACTOR = 2.5
-_BUILD_BYTES_FIXED = 200_000
+_BUILD_BYTES_PER_RUN_AND_THREAD = 150
+_BUILD_SCATTER_FACTOR = 2.8
+_BUILD_BYTES_FIXED = 1_000_000
 
 
 def build_bytes(segments, threads=None):
@@ -382,11 +382,12 @@ def build_bytes(segments, threads=None):
     """
     nz, ny, nx = segments.shape
     runs = segments.segment_count
-    voxels = segments.voxel_count if runs else 0
+    # the voxels without Segments.voxel_count's two int64 copies of the runs (sums in NumPy's small buffers)
+    voxels = int(np.sum(segments.ends, dtype=np.int64)) - int(np.sum(segments.starts, dtype=np.int64)) + runs
     threads = min(threads or os.cpu_count() or 1, 6)
     per_run = _BUILD_BYTES_PER_RUN + _BUILD_BYTES_PER_RUN_AND_THREAD * threads
-    sparse = 1 + _BUILD_SPARSE_FACTOR * math.log(nz * ny * nx / voxels, 8) if voxels else 1
-    return int(_BUILD_BYTES_FIXED + 16 * nz * ny + _BUILD_BYTES_PER_VOXEL * voxels + per_run * sparse * runs)
+    scattered = 1 + _BUILD_SCATTER_FACTOR * math.log(nz * ny * nx / voxels, 8) * runs / voxels if voxels else 1
+    return int(_BUILD_BYTES_FIXED + 16 * nz * ny + _BUILD_BYTES_PER_VOXEL * voxels + per_run * scattered * runs)
 
 
 def check_build_memory(segments, max_memory):
