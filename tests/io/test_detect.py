@@ -39,7 +39,7 @@ def test_an_unknown_folder_says_what_it_holds(tmp_path):
 
 
 def test_suffixes_first_then_sniffing_in_the_order_of_readers(tmp_path):
-    assert list(io.READERS)[:4] == ["seg", "dicom", "images", "metaimage"] and io.FORMATS[0] == "auto"
+    assert list(io.READERS)[:5] == ["seg", "zarr", "dicom", "images", "metaimage"] and io.FORMATS[0] == "auto"
     np.save(tmp_path / "v.npy", np.zeros((2, 3, 4)))
     assert io.detect_format(tmp_path / "v.npy") == "npy"
     assert io.detect_format(tmp_path / "v.npy", raw=io.RawLayout(4, 3, np.dtype("u1"))) == "raw"

@@ -18,8 +18,6 @@ from voxrender.errors import InputError
 from voxrender.io import zarr as zarr_io
 from voxrender.io._shared import identity_progress
 
-needs_reader = pytest.mark.skipif("zarr" not in io.READERS, reason="zarr is not in READERS yet (the lead adds it)")
-
 
 def write_ome(path, values, version="0.4", units=("micrometer", "micrometer", "nanometer"), scale=(2.0, 0.5, 250.0),
               translation=(10.0, 20.0, 30000.0), count=3, orientations=None, channel_names=None):
@@ -248,7 +246,6 @@ def test_holds_zarr(tmp_path):
         [True, True, False]
 
 
-@needs_reader
 def test_read_volume_and_open_stack_find_zarr(tmp_path):
     values = random_stack((8, 12, 16))
     path = write_ome(tmp_path / "image.ome.zarr", values, "0.5",

@@ -7,6 +7,8 @@ read by the module of its name (``voxrender.io.dicom`` ...):
 format     what
 ========== ==========================================================================
 seg        a DICOM SEG file (BINARY, FRACTIONAL or LABELMAP): one label map, named by its segments (highdicom)
+zarr       a Zarr array or OME-Zarr image folder (NGFF 0.4/0.5), one level of it (``level=``), read a slab of
+           chunks at a time
 dicom      a folder holding a DICOM series, ordered by ImagePositionPatient
 images     a folder of 2-D images (PNG, TIFF, BMP, JPEG), in natural order of names
 metaimage  a MetaImage ``.mhd`` (header + raw file) or ``.mha`` (one file), raw or zlib
@@ -45,7 +47,7 @@ import numpy as np
 
 from .. import orient
 from ..errors import InputError
-from . import dicom, images, masks, metaimage, nifti, npy, nrrd, raw, seg, tiff
+from . import dicom, images, masks, metaimage, nifti, npy, nrrd, raw, seg, tiff, zarr
 from ._shared import (
     RawLayout,
     Reader,
@@ -61,10 +63,12 @@ from ._shared import (
 __all__ = ["Volume", "RawLayout", "Reader", "READERS", "FORMATS", "read_volume", "open_stack", "detect_format",
            "natural_key", "check_spacing", "patient_affine"]
 
-# The formats by name, in the order ``format="auto"`` tries them: a folder of DICOM files before one of images (an
+# The formats by name, in the order ``format="auto"`` tries them: a Zarr store before DICOM (its folders are told by a
+# metadata file, where the DICOM sniff would open every chunk), a folder of DICOM files before one of images (an
 # export may hold a preview picture beside its slices), folders of slices before folders of volume files.
 READERS = {
     "seg": seg.READER,
+    "zarr": zarr.READER,
     "dicom": dicom.READER,
     "images": images.READER,
     "metaimage": metaimage.READER,
@@ -111,7 +115,8 @@ def detect_format(path, raw=None):
             return format
     if path.is_file():
         raise InputError(f"cannot tell the format of {path}; give a folder of slices, .mhd/.mha, .nii/.nii.gz, "
-                         ".nrrd/.nhdr, .npy, a multi-page .tif, or the layout of headerless slices", parameter="format")
+                         ".nrrd/.nhdr, .npy, a multi-page .tif, a Zarr or OME-Zarr folder, or the layout of "
+                         "headerless slices", parameter="format")
     files = files_in(path)
     raise InputError(f"{path} holds {len(files)} file{'s' * (len(files) > 1)} ({some_names(files)}) but no DICOM "
                      "files, images (PNG, TIFF, BMP, JPEG) or volume files; for headerless slices give their layout",
