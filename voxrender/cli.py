@@ -23,7 +23,7 @@ from ._render import DEFAULT_METHOD, METHODS, Clip
 from ._render.raycast import CONNECTIVITIES
 from .errors import InputError
 from .output_kinds import LABEL_ROWS, LABELS, OUTPUTS
-from .pipeline import Encoded, PrepOptions, ReadOptions, is_segments_file, load_segments
+from .pipeline import Encoded, PrepOptions, ReadOptions, is_segments_file, level_for_picture, load_segments
 from .shade import HEADLIGHT, SHADINGS
 from .sheet import render_sheet, sheet
 from .slices import OVERLAYS
@@ -413,14 +413,17 @@ def render_command(input_path, output_path, **options):
     outputs.check(render_options)
     _check_output_paths(outputs.wanted())
     joins = _dicom_study(input_path, options, outputs.dicom)         # a non-DICOM input is refused before reading
+    read, note = level_for_picture(input_path, _read_options(options), max(render_options.size))
+    if note:
+        click.echo(note, err=True)
     study = None
     if render_options.projection:
         from .study import load_study
 
-        study = load_study(input_path, _read_options(options), _prep_options(options), progress)
+        study = load_study(input_path, read, _prep_options(options), progress)
         loaded = study.encoded
     else:
-        loaded = load_segments(input_path, _read_options(options), _prep_options(options), progress)
+        loaded = load_segments(input_path, read, _prep_options(options), progress)
     _check_label_options(loaded.segments, {"colours": options["colours"], "legend": options["legend"],
                                            **{name: path for name, path in outputs.wanted().items()
                                               if OUTPUTS[name].needs in (LABELS, LABEL_ROWS)}})

@@ -69,6 +69,25 @@ class PrepOptions:
             raise InputError(f"{self.bin!r} must be a whole number of voxels, 1 or more", parameter="bin")
 
 
+def level_for_picture(path, read, pixels):
+    """``read`` with the level of a multiscale input (OME-Zarr) that suits a picture ``pixels`` across, when none is
+    given: the finest whose largest side is at most ``pixels`` (:func:`voxrender.io.zarr.choose_level`).  Returns
+    ``(read, note)``, the note saying which level was picked (``None`` when there was no choice to make).
+    """
+    if read.level is not None or is_segments_file(path) or read.format not in ("auto", "zarr") or \
+            (read.format == "auto" and io.detect_format(path, read.raw) != "zarr"):
+        return read, None
+    from .io.zarr import choose_level, levels
+
+    shapes = levels(path)
+    if len(shapes) < 2:
+        return read, None
+    level = choose_level(path, pixels)
+    shown = ", ".join(f"{k}: {'x'.join(map(str, shape[::-1]))}" for k, shape in enumerate(shapes))
+    return replace(read, level=level), (f"{path}: level {level} of its {len(shapes)} levels ({shown}), the finest "
+                                        f"that suits a picture {pixels} pixels across")
+
+
 def is_segments_file(path):
     """An encoded object: ``.vxs``, or ``.vxo`` (a ``.vxs`` that also keeps the region octree)."""
     return Path(path).suffix.lower() in (".vxs", ".vxo")

@@ -258,3 +258,24 @@ def test_read_volume_and_open_stack_find_zarr(tmp_path):
     assert np.array_equal(stack.read_slices(0, stack.shape[0]), volume.values)
     zarr.create_array(store=str(tmp_path / "plain"), data=values, zarr_format=2)      # no suffix: sniffed
     assert np.array_equal(io.read_volume(tmp_path / "plain").values, values)
+
+
+def test_render_picks_the_level_that_suits_the_picture_and_says_so(tmp_path):
+    from click.testing import CliRunner
+
+    from voxrender.cli import main
+
+    z, y, x = np.mgrid[:32, :48, :64]
+    ball = (((x - 32) / 24) ** 2 + ((y - 24) / 18) ** 2 + ((z - 16) / 12) ** 2 < 1).astype(np.uint8) * 100
+    write_ome(tmp_path / "ball.ome.zarr", ball, scale=(1.0, 1.0, 1.0), units=("millimeter",) * 3)
+    runner = CliRunner()
+    done = runner.invoke(main, ["render", str(tmp_path / "ball.ome.zarr"), "--threshold", "50", "--size", "40",
+                                "-o", str(tmp_path / "small.png")])
+    assert done.exit_code == 0, done.output
+    assert "level 1 of its 3 levels" in done.output            # 32x24x16 fits 40 pixels; 64x48x32 does not
+    done = runner.invoke(main, ["render", str(tmp_path / "ball.ome.zarr"), "--threshold", "50", "--size", "40",
+                                "--level", "0", "-o", str(tmp_path / "fine.png")])
+    assert done.exit_code == 0 and "level" not in done.output, done.output
+    done = runner.invoke(main, ["encode", str(tmp_path / "ball.ome.zarr"), "--threshold", "50", "--level", "2",
+                                "--max-memory", "1K", "-o", str(tmp_path / "coarse.vxs")])
+    assert done.exit_code == 0 and "16x12x8 voxels" in done.output and "streamed" in done.output, done.output
