@@ -22,7 +22,10 @@ It measures, on ``vhf_head`` at 300 HU (512 x 512 pictures at scale 1):
 * the octree papers' tables: every octree method and the dynamic screen at Zhao and Davis's
   VPNs with their Table II and III statistics, on vhf_head and on their artificial object (a
   checkerboard with 32 white, 32 black and 9 grey octants); and the sorted linear octree
-  against the z-buffer over a range of voxel counts (the linear-octree paper's Table 4).
+  against the z-buffer over a range of voxel counts (the linear-octree paper's Table 4);
+* the big stack (``benchmarks/big_stack.py``): a 2048^3 uint16 TIFF stack written once into a cache, encoded
+  (plain, ``--bin 2``, ``--jobs 2``) and rendered by ftb at 1024^2 from disk, beside a cold ``cat`` of the same
+  files, with peak RSS (run as root, so that the page cache can be dropped before each).
 
 Results go to ``benchmark-results/results.md`` and ``results.json``.
 """
@@ -42,6 +45,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from benchmarks import big_stack
 from benchmarks.masks import bench_mask_folder
 from voxrender import io, prep, segments
 from voxrender._render import DEFAULT_METHOD, METHODS, render
@@ -654,6 +658,8 @@ def markdown(results):
                   ", ".join(f"{m} {e:.2f}" for m, e in data["exponents"].items()) +
                   "; between the two largest N: " +
                   ", ".join(f"{m} {e:.2f}" for m, e in data["exponents_largest"].items()), ""]
+    if results.get("big_stack"):
+        lines += big_stack.markdown_lines(results["big_stack"])
     return "\n".join(lines)
 
 
@@ -752,6 +758,7 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
                                    repeat),
             "octree_files": bench_octree_files(encoded, repeat),
             "octree_build": bench_octree_build(encoded),
+            "big_stack": big_stack.bench_big_stack(),
             "sorted_octree": bench_sorted_octree(repeat),
             "raycast": bench_raycast(min(repeat, 3), {
                 "thin shell 128^3": (segments.encode(thin_shell()), View(30.0, 10.0, 0.0, (256, 256), 1.5)),
