@@ -104,3 +104,34 @@ def test_what_needs_the_whole_volume_is_refused_and_nothing_is_left(tmp_path):
             encode_stack(tmp_path / "v.npy", out / "o.vxs", ReadOptions(), prepare, bin=prepare.bin)
         assert error.value.parameter == parameter
         assert list(out.iterdir()) == []
+
+
+@pytest.mark.parametrize("code", ["LPI", "PIR"])
+def test_a_compressed_stack_out_of_stored_order_is_inflated_once(tmp_path, code):
+    from formats import stored, write_nifti
+
+    write_nifti(tmp_path / "v.nii.gz", *stored(porous(), code))
+    same_file(tmp_path, "v.nii.gz", ReadOptions(), PrepOptions(threshold=1000), slabs=(2,))
+    info = encode_stack(tmp_path / "v.nii.gz", tmp_path / "o.vxs", ReadOptions(), PrepOptions(threshold=1000),
+                        slab_voxels=2 * SHAPE[1] * SHAPE[2])
+    assert info["how"].endswith("(inflated once)")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["memory.vxs", "o.vxs", "streamed-2.vxs", "v.nii.gz"]
+
+
+@pytest.mark.parametrize("streamed", [["--max-memory", "1K"], []])
+def test_a_full_disk_is_one_line_and_leaves_nothing(tmp_path, streamed):
+    import subprocess
+    import sys
+
+    np.save(tmp_path / "v.npy", porous((40, 64, 64)))
+    out = tmp_path / "out"
+    out.mkdir()
+    # a file size limit stands for the full disk: writes past it fail as they would on one (EFBIG, not ENOSPC)
+    script = ("import resource, signal, sys\nsignal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
+              "resource.setrlimit(resource.RLIMIT_FSIZE, (20000, 20000))\nfrom voxrender.cli import main\n"
+              "main(sys.argv[1:])")
+    done = subprocess.run([sys.executable, "-c", script, "encode", str(tmp_path / "v.npy"), "--threshold", "1000",
+                           *streamed, "-o", str(out / "v.vxs")], capture_output=True, text=True)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.startswith("error: no room to write") and len(done.stderr.splitlines()) == 1, done.stderr
+    assert list(out.iterdir()) == []

@@ -14,12 +14,14 @@ The slabs are independent, so the stack is cut into parts that worker processes 
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import math
 import os
 import shutil
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -57,6 +59,7 @@ class Plan:
     normals_from: str       # "grey values" or "the binary mask"
     fill: float | None      # the value NaN and inf voxels take for the normals (the lowest), when there are any
     slab: int               # grid slices per slab
+    spool: str | None = None   # a raw file of the stored slices, inflated once (compressed, not in stored order)
 
 
 def encode_stack(path, output, read=None, prepare=None, *, bin=1, jobs=1, scheduler=None, progress=None,
@@ -109,17 +112,26 @@ def encode_stack(path, output, read=None, prepare=None, *, bin=1, jobs=1, schedu
                          parameter="min_object")
     output = Path(output)
     stack = _open(str(path), read)
-    plan, meta = _plan(stack, str(path), read, prepare, bin, slab_voxels)
-    parts = [(a, min(a + plan.slab, plan.grid[0])) for a in range(0, plan.grid[0], plan.slab)]   # a slab each
     folder = Path(tempfile.mkdtemp(prefix=f".{output.name}.parts-", dir=output.parent))
     try:
-        results = _run(plan, parts, folder, jobs, scheduler, progress, stack)
+        spool = None
+        if stack.stack.sequential and stack.how != "stored order":
+            spool = str(folder / "stack.raw")
+            with room_for(output):
+                _spool(stack.stack, spool, progress)
+            stack = _open(str(path), read, spool)
+        plan, meta = _plan(stack, str(path), read, prepare, bin, slab_voxels, spool)
+        parts = [(a, min(a + plan.slab, plan.grid[0])) for a in range(0, plan.grid[0], plan.slab)]   # a slab each
+        with room_for(output):
+            results = _run(plan, parts, folder, jobs, scheduler, progress, stack)
         counts = np.concatenate([r["rows"] for r in results])
         if not counts.any():
             raise InputError(f"the {'windows' if len(plan.windows) > 1 else 'threshold'} "
                              f"{', '.join(w.words() for w in plan.windows)} holds no voxel of {meta['source']}; "
                              "choose another", parameter="preset" if prepare.tissues else "threshold")
-        return _write(output, plan, meta, prepare, results, counts) | {"how": stack.how}
+        with room_for(output):
+            written = _write(output, plan, meta, prepare, results, counts)
+        return written | {"how": stack.how + " (inflated once)" * bool(spool)}
     finally:
         shutil.rmtree(folder, ignore_errors=True)
 
@@ -129,17 +141,40 @@ def encode_stack(path, output, read=None, prepare=None, *, bin=1, jobs=1, schedu
 _STACKS = {}        # the stack each process has open, by source: a worker encodes several parts of one
 
 
-def _open(source, read):
-    key = (source, read)
+def _open(source, read, spool=None):
+    """The stack at ``source`` in the canonical frame, unread; with ``spool``, its stored slices read from that
+    raw file (:func:`_spool`) instead of its own.
+    """
+    key = (source, read, spool)
     if key not in _STACKS:
         _STACKS.clear()
-        _STACKS[key] = io.open_stack(source, format=read.format, raw=read.raw, spacing=read.spacing,
-                                     series=read.series, frame=read.frame, level=read.level,
-                                     orientation=read.orientation, reorient=read.reorient)
+        stack = io.open_stack(source, format=read.format, raw=read.raw, spacing=read.spacing, series=read.series,
+                              frame=read.frame, level=read.level, orientation=read.orientation,
+                              reorient=read.reorient)
+        if spool:
+            stored = stack.stack
+
+            def read_slices(z0, z1):
+                return io._shared.slices_at(spool, 0, stored.shape, stored.dtype, z0, z1)
+
+            stack.stack = replace(stored, read_slices=read_slices, sequential=False)
+        _STACKS[key] = stack
     return _STACKS[key]
 
 
-def _plan(stack, source, read, prepare, bin, slab_voxels):
+def _spool(stored, path, progress, slab_bytes=SLAB_VOXELS * 2):
+    """Write the stored slices of a compressed stack, inflated in one pass, into the raw file ``path``: read from
+    the far end or across its slices, each slab would inflate the stream again from its start.
+    """
+    per = max(1, slab_bytes // max(1, stored.nbytes // stored.shape[0]))
+    starts = range(0, stored.shape[0], per)
+    sizes = ByteCounts(stored.stored_bytes * min(per, stored.shape[0] - z) // stored.shape[0] for z in starts)
+    with open(path, "wb") as f:
+        for z, _ in zip(starts, progress(sizes, sum(sizes), "inflating") if progress else sizes, strict=True):
+            f.write(np.ascontiguousarray(stored.read_slices(z, min(z + per, stored.shape[0]))).data)
+
+
+def _plan(stack, source, read, prepare, bin, slab_voxels, spool=None):
     """The :class:`Plan` of a stack and the meta its object will have (as :func:`encode_volume` makes it)."""
     region = tuple(slice(r.start or 0, r.stop if r.stop is not None else n)
                    for r, n in zip(prepare.crop or (slice(None),) * 3, stack.shape, strict=True))
@@ -166,7 +201,7 @@ def _plan(stack, source, read, prepare, bin, slab_voxels):
     plane = max(1, cropped[1] * cropped[2])
     slab = max(1, min(grid[0], slab_voxels // (plane * bin)))
     plan = Plan(source, read, stack.shape, region, bin, windows, grid, voxel, spacing, out_shape is not None,
-                "the binary mask" if survey["binary"] else "grey values", survey["fill"], slab)
+                "the binary mask" if survey["binary"] else "grey values", survey["fill"], slab, spool)
     meta = source_meta(stack, source)
     if bin > 1:
         meta["binned"] = bin
@@ -272,7 +307,7 @@ def encode_part(plan, first, last, folder):
     """Encode the grid's slices ``first .. last - 1`` of a :class:`Plan`, a slab at a time, into files in
     ``folder``: their runs, labels and normals.  Returns the runs each row has and the files.
     """
-    stack = _open(plan.source, plan.read)
+    stack = _open(plan.source, plan.read, plan.spool)
     names = ("starts", "ends", "labels", "normal_index", "normal_packed")
     files = {name: Path(folder) / f"{first:08d}.{name}" for name in names}
     rows, normal_count = [], 0
@@ -456,7 +491,8 @@ def encode_file(path, output, read=None, prepare=None, *, octree=False, jobs=1, 
 
         check_build_memory(loaded.segments, max_memory)
     if octree or not streamed:
-        loaded.save(output, octree=octree)
+        with room_for(output):
+            loaded.save(output, octree=octree)
     encoded = load_segments(output)                      # mapped from the file, as a renderer will take it
     encoded.seconds = {"encode": time.perf_counter() - started}
     return encoded, _open(str(path), read).how if streamed else None
@@ -493,6 +529,20 @@ def stack_of(path, read):
     """The stack at ``path`` unread, when its reader reads slabs; else ``None``."""
     format = io.detect_format(path, read.raw) if read.format == "auto" else read.format
     return _open(str(path), read) if format in _SLABBED else None
+
+
+@contextlib.contextmanager
+def room_for(output):
+    """Turn a full disk (or a file size limit) met while writing ``output`` or its parts into bad input: one line
+    that says so; the writers leave nothing behind.
+    """
+    try:
+        yield
+    except OSError as exc:
+        if exc.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
+            raise
+        raise InputError(f"no room to write {output}: {exc.strerror}; free some space or write it elsewhere",
+                         parameter="output") from None
 
 
 def machine_memory():
