@@ -135,3 +135,21 @@ def test_a_full_disk_is_one_line_and_leaves_nothing(tmp_path, streamed):
     assert done.returncode == 2, done.stderr
     assert done.stderr.startswith("error: no room to write") and len(done.stderr.splitlines()) == 1, done.stderr
     assert list(out.iterdir()) == []
+
+
+def test_an_octree_build_over_the_memory_allowed_is_refused_before_it_starts(tmp_path):
+    from click.testing import CliRunner
+
+    from voxrender.cli import main
+
+    np.save(tmp_path / "v.npy", porous())
+    runner = CliRunner()
+    for args in (["render", str(tmp_path / "v.npy"), "--method", "octree-ftb", "-o", str(tmp_path / "o.png")],
+                 ["encode", str(tmp_path / "v.npy"), "--octree", "-o", str(tmp_path / "o.vxo")]):
+        done = runner.invoke(main, [*args, "--threshold", "1000", "--max-memory", "10K"])
+        assert done.exit_code == 2 and "--max-memory" in done.output and "binned by 2" in done.output, done.output
+        assert done.output.count("\n") == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["v.npy"]
+    done = runner.invoke(main, ["render", str(tmp_path / "v.npy"), "--method", "ftb", "--threshold", "1000",
+                                "--max-memory", "10K", "-o", str(tmp_path / "o.png")])
+    assert done.exit_code == 0, done.output

@@ -23,7 +23,15 @@ from ._render import DEFAULT_METHOD, METHODS, Clip
 from ._render.raycast import CONNECTIVITIES
 from .errors import InputError
 from .output_kinds import LABEL_ROWS, LABELS, OUTPUTS
-from .pipeline import Encoded, PrepOptions, ReadOptions, is_segments_file, level_for_picture, load_segments
+from .pipeline import (
+    Encoded,
+    PrepOptions,
+    ReadOptions,
+    is_segments_file,
+    level_for_picture,
+    load_segments,
+    machine_memory,
+)
 from .shade import HEADLIGHT, SHADINGS
 from .sheet import render_sheet, sheet
 from .slices import OVERLAYS
@@ -403,6 +411,7 @@ def main():
 @click.option("--gamma", type=float, help="Rotation about Z1 (the view axis) in degrees.")
 @click.option("--vpn", metavar="I,J,K", help="View plane normal (object x,y,z toward the viewer).")
 @_render_options_decorator
+@_max_memory_option
 def render_command(input_path, output_path, **options):
     """Render INPUT (a slice folder, volume file, label map or .vxs) to a shaded PNG."""
     _check_vxs_options(input_path, options)
@@ -427,8 +436,9 @@ def render_command(input_path, output_path, **options):
     _check_label_options(loaded.segments, {"colours": options["colours"], "legend": options["legend"],
                                            **{name: path for name, path in outputs.wanted().items()
                                               if OUTPUTS[name].needs in (LABELS, LABEL_ROWS)}})
+    max_memory = parse.memory(options["max_memory"]) if options["max_memory"] else None
     result = picture(loaded.segments, render_options.view(*angles), render_options, progress,
-                     loaded.tree_for(render_options.method), study=study)
+                     loaded.tree_for(render_options.method, max_memory), study=study)
     result.seconds = {**loaded.seconds, **result.seconds}
     write_outputs(result, outputs, {**about(loaded.segments), **joins})   # an empty picture was warned of
 
@@ -615,7 +625,7 @@ def info_command(input_path, as_json, **options):
     else:
         read = _read_options(options)
         stack = stream.stack_of(input_path, read)
-        if stack is not None and stack.nbytes > stream.machine_memory() // 2:       # described by its header
+        if stack is not None and stack.nbytes > machine_memory() // 2:       # described by its header
             summary = {"input": str(input_path), "format": stack.meta.get("format"),
                        "dimensions_xyz": list(stack.shape[::-1]), "spacing_mm": list(stack.spacing),
                        "dtype": str(stack.dtype), "size_mb": round(stack.nbytes / 1e6),

@@ -9,6 +9,7 @@ first use, so that a batch worker rendering many views pays for it once.
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -69,6 +70,11 @@ class PrepOptions:
             raise InputError(f"{self.bin!r} must be a whole number of voxels, 1 or more", parameter="bin")
 
 
+def machine_memory():
+    """The bytes of memory this machine has."""
+    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+
+
 def level_for_picture(path, read, pixels):
     """``read`` with the level of a multiscale input (OME-Zarr) that suits a picture ``pixels`` across, when none is
     given: the finest whose largest side is at most ``pixels`` (:func:`voxrender.io.zarr.choose_level`).  Returns
@@ -104,11 +110,14 @@ class Encoded:
     seconds: dict = field(default_factory=dict)
     _octree: object = field(default=None, repr=False)
 
-    def octree(self):
-        """The region octree of the object (built now if it has not been)."""
+    def octree(self, max_memory=None):
+        """The region octree of the object (built now if it has not been); a build whose estimated memory is over
+        ``max_memory`` bytes (default: half the machine's) is refused before it starts.
+        """
         if self._octree is None:
-            from .octree import build_from_segments
+            from .octree import build_from_segments, check_build_memory
 
+            check_build_memory(self.segments, max_memory or machine_memory() // 2)
             self._octree = build_from_segments(self.segments)
         return self._octree
 
@@ -126,11 +135,11 @@ class Encoded:
 
         segments.save(self.segments, path, sections(self.octree()) if octree else None)
 
-    def tree_for(self, method):
+    def tree_for(self, method, max_memory=None):
         """The region octree when ``method`` traverses one (see :meth:`octree`), else ``None``."""
         from ._render import method_record
 
-        return self.octree() if method_record(method).octree else None
+        return self.octree(max_memory) if method_record(method).octree else None
 
 
 def load_segments(path, read=None, prepare=None, progress=None):

@@ -17,7 +17,6 @@ from __future__ import annotations
 import contextlib
 import errno
 import math
-import os
 import shutil
 import tempfile
 import time
@@ -29,7 +28,7 @@ import numpy as np
 from . import io, prep, segments
 from .errors import InputError
 from .normals import stencil_radius, surface_normals
-from .pipeline import PrepOptions, ReadOptions, grey_sampler, grid_step, load_segments, source_meta
+from .pipeline import PrepOptions, ReadOptions, grey_sampler, grid_step, load_segments, machine_memory, source_meta
 
 SLAB_VOXELS = 1 << 26          # input voxels read at a time (128 MB of 16-bit slices)
 NORMAL_VOXELS = 1 << 24        # grid voxels whose band's normals are found at a time (their stencils are large)
@@ -487,9 +486,7 @@ def encode_file(path, output, read=None, prepare=None, *, octree=False, jobs=1, 
     else:
         loaded = load_segments(path, read, prepare, progress)
     if octree:
-        from .octree import check_build_memory
-
-        check_build_memory(loaded.segments, max_memory)
+        loaded.octree(max_memory)                       # refused here if its build would pass max_memory
     if octree or not streamed:
         with room_for(output):
             loaded.save(output, octree=octree)
@@ -545,8 +542,5 @@ def room_for(output):
                          parameter="output") from None
 
 
-def machine_memory():
-    """The bytes of memory this machine has."""
-    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
 
 
