@@ -345,12 +345,13 @@ def build_from_segments(segments):
 
 
 # What the build of an octree takes (build_bytes), measured with tracemalloc on spheres, boxes, smooth porous,
-# gyroid and random objects of 32^3 to 256^3 and the CT head's bone and skin: the Morton codes of the voxels and
-# their sort take about 64 bytes a voxel; the nodes, the leaf pairs and the adjacency tables about 800 bytes a run
-# on two threads (each thread of the face search holds its own temporaries: 150 bytes a run each, up to the six
-# directions), more for scattered short runs, each at the end of its own path of grey nodes: a factor
-# 1 + 2.8 log8(grid / voxels) / (voxels per run).  The estimate is 1 to 2.3 times the measured peak on all of them.
-_BUILD_BYTES_PER_VOXEL = 64
+# gyroid and random objects of 32^3 to 256^3, gyroids of 384^3 and 512^3 and the CT head's bone and skin: the
+# Morton codes of the voxels and their sort take about 64 bytes a voxel (72 counted, for a margin); the nodes, the
+# leaf pairs and the adjacency tables about 800 bytes a run on two threads (each thread of the face search holds
+# its own temporaries: 150 bytes a run each, up to the six directions), more for scattered short runs, each at the
+# end of its own path of grey nodes: a factor 1 + 2.8 log8(grid / voxels) / (voxels per run).  The estimate is 1.05
+# to 2.3 times the measured peak on all of them.
+_BUILD_BYTES_PER_VOXEL = 72
 _BUILD_BYTES_PER_RUN = 500
 _BUILD_BYTES_PER_RUN_AND_THREAD = 150
 _BUILD_SCATTER_FACTOR = 2.8
