@@ -153,3 +153,20 @@ def test_an_octree_build_over_the_memory_allowed_is_refused_before_it_starts(tmp
     done = runner.invoke(main, ["render", str(tmp_path / "v.npy"), "--method", "ftb", "--threshold", "1000",
                                 "--max-memory", "10K", "-o", str(tmp_path / "o.png")])
     assert done.exit_code == 0, done.output
+
+
+def test_binning_in_memory_is_the_preview_of_the_whole_and_labels_are_not_binned(tmp_path):
+    from click.testing import CliRunner
+
+    from voxrender.cli import main
+
+    np.save(tmp_path / "v.npy", porous())
+    runner = CliRunner()
+    done = runner.invoke(main, ["encode", str(tmp_path / "v.npy"), "--threshold", "1000", "--bin", "2",
+                                "-o", str(tmp_path / "b.vxs")])
+    assert done.exit_code == 0 and "7x5x6 voxels" in done.output and "binned by 2" in done.output, done.output
+    assert segments.load(tmp_path / "b.vxs").spacing == (2.0, 2.0, 2.0)
+    np.save(tmp_path / "l.npy", (porous() > 1000).astype(np.uint8))
+    for args in (["render", str(tmp_path / "l.npy"), "--labels"], ["slices", str(tmp_path / "v.npy")]):
+        done = runner.invoke(main, [*args, "--bin", "2", "-o", str(tmp_path / "x.png")])
+        assert done.exit_code == 2 and "--bin" in done.output, done.output

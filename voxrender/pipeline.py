@@ -200,6 +200,9 @@ def encode_volume(volume, prepare=None, read=None, progress=None, source=None):
     read = read or ReadOptions()
     prepare = prepare or PrepOptions()
     meta = source_meta(volume, source)
+    if prepare.bin > 1 and prepare.labels is not None:
+        raise InputError("binning averages grey values, which would mix labels; select the object by a threshold "
+                         "or a window to bin it, or leave the label map unbinned", parameter="bin")
     if prepare.bin > 1:                 # a preview: the cropped volume binned (its crop is done)
         volume = prep.binned(volume, prepare.bin, prepare.crop)
         prepare = replace(prepare, crop=None)

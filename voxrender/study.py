@@ -194,6 +194,9 @@ def load_study(path, read=None, prepare=None, progress=None, encode=True):
     if is_segments_file(path):
         raise InputError(f"{path} is an encoded object, which keeps no grey values to draw slices or projections "
                          "of; give the slice stack it was made from")
+    if prepare.bin > 1:
+        raise InputError("slices, projections and QC sheets are drawn from the stack's own voxels, not binned ones; "
+                         "drop the binning, or crop the stack", parameter="bin")
     started = time.perf_counter()
     volume = read.read(path, progress)
     seconds = {"load": time.perf_counter() - started}
