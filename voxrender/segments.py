@@ -86,7 +86,8 @@ class Segments:
     @property
     def voxel_count(self):
         """How many voxels the object has."""
-        return int(np.sum(self.ends.astype(np.int64) - self.starts + 1))
+        # summed apart: no int64 copies of the runs, which are as large as the file for a big object
+        return int(np.sum(self.ends, dtype=np.int64)) - int(np.sum(self.starts, dtype=np.int64)) + self.segment_count
 
     def label_voxels(self):
         """How many voxels each label has, ``{label: count}``, by label; ``{}`` for a single object.

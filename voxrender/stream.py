@@ -287,16 +287,18 @@ def _run(plan, parts, folder, jobs, scheduler, progress, stack):
     """Encode the parts, in this process or on workers; their results in order."""
     from .batch import executor
 
-    sizes = ByteCounts(stack.stored_bytes * (b - a) // plan.grid[0] for a, b in parts)   # about what each reads
+    # about the bytes each part reads: its share of the crop's slices
+    read = stack.stored_bytes * (plan.region[0].stop - plan.region[0].start) / stack.shape[0]
+    sizes = ByteCounts(int(read * (b - a) / plan.grid[0]) for a, b in parts)
     ticks = iter(progress(sizes, sum(sizes), "encoding") if progress else sizes)
+    next(ticks, None)                                         # the bar and its clock start
     pool = executor(jobs, scheduler)
     try:
         futures = {pool.submit(encode_part, plan, a, b, str(folder)): n for n, (a, b) in enumerate(parts)}
         results = [None] * len(parts)
         for future in pool.as_completed(list(futures)):      # in order when run here, as they end on workers
             results[futures[future]] = future.result()
-            next(ticks, None)
-        next(ticks, None)                                     # the bar ends
+            next(ticks, None)                                 # a part done: the bar moves by its bytes
         return results
     finally:
         pool.close()
@@ -455,8 +457,8 @@ def _labels_present(labels):
 
 
 def _voxel_count(starts, ends):
-    return int(sum(int(np.sum(e.astype(np.int64) - s + 1)) for s, e in zip(_chunks(starts), _chunks(ends),
-                                                                             strict=True)))
+    return sum(int(np.sum(e, dtype=np.int64)) - int(np.sum(s, dtype=np.int64)) + len(s)
+               for s, e in zip(_chunks(starts), _chunks(ends), strict=True))
 
 
 def encode_file(path, output, read=None, prepare=None, *, octree=False, jobs=1, scheduler=None, max_memory=None,
