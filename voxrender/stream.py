@@ -198,6 +198,8 @@ def _plan(stack, source, read, prepare, bin, slab_voxels, spool=None):
         windows = (found if isinstance(found, prep.Window) else prep.Window(float(found)),)
         threshold = str(found) if isinstance(found, prep.Window) else windows[0].lo
     plane = max(1, cropped[1] * cropped[2])
+    if stack.how == "across the stored slices":       # each slab reads the whole stack: fewer, thicker slabs
+        slab_voxels *= 4
     slab = max(1, min(grid[0], slab_voxels // (plane * bin)))
     plan = Plan(source, read, stack.shape, region, bin, windows, grid, voxel, spacing, out_shape is not None,
                 "the binary mask" if survey["binary"] else "grey values", survey["fill"], slab, spool)
