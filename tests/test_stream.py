@@ -30,7 +30,7 @@ def same_file(tmp_path, name, read, prepare, slabs=(1, 3), jobs=1, scheduler=Non
     plane = SHAPE[1] * SHAPE[2]
     for slab in slabs:
         streamed = tmp_path / f"streamed-{slab}.vxs"
-        encode_stack(tmp_path / name, streamed, read, prepare, bin=prepare.bin, slab_voxels=slab * plane,
+        encode_stack(tmp_path / name, streamed, read, prepare, slab_voxels=slab * plane,
                      jobs=jobs, scheduler=scheduler)
         assert streamed.read_bytes() == expected.read_bytes(), (name, read, prepare, slab)
     return segments.load(expected)
@@ -101,7 +101,7 @@ def test_what_needs_the_whole_volume_is_refused_and_nothing_is_left(tmp_path):
                                (PrepOptions(threshold=5000), "threshold"),
                                (PrepOptions(threshold=1000, bin=20), "bin")]:
         with pytest.raises(InputError) as error:
-            encode_stack(tmp_path / "v.npy", out / "o.vxs", ReadOptions(), prepare, bin=prepare.bin)
+            encode_stack(tmp_path / "v.npy", out / "o.vxs", ReadOptions(), prepare)
         assert error.value.parameter == parameter
         assert list(out.iterdir()) == []
 

@@ -61,7 +61,7 @@ class Plan:
     spool: str | None = None   # a raw file of the stored slices, inflated once (compressed, not in stored order)
 
 
-def encode_stack(path, output, read=None, prepare=None, *, bin=1, jobs=1, scheduler=None, progress=None,
+def encode_stack(path, output, read=None, prepare=None, *, jobs=1, scheduler=None, progress=None,
                  slab_voxels=SLAB_VOXELS):
     """Encode the stack at ``path`` into the ``.vxs`` file ``output`` a slab at a time, in bounded memory.
 
@@ -73,11 +73,9 @@ def encode_stack(path, output, read=None, prepare=None, *, bin=1, jobs=1, schedu
         The ``.vxs`` file to write (atomically; the parts are made beside it and removed).
     read : ReadOptions, optional
     prepare : PrepOptions, optional
-        A threshold, window or tissues (presets) select the object, as for
-        :func:`voxrender.pipeline.load_segments`; ``min_object`` and label maps need the whole volume and are
+        A threshold, window or tissues (presets) select the object, with the crop, binning and cubic voxels, as
+        for :func:`voxrender.pipeline.load_segments`; ``min_object`` and label maps need the whole volume and are
         refused.
-    bin : int
-        Mean binning of ``bin`` x ``bin`` x ``bin`` input voxels first (after the crop).
     jobs : int
         Worker processes encoding parts of the stack at once.
     scheduler : str, optional
@@ -113,22 +111,20 @@ def encode_stack(path, output, read=None, prepare=None, *, bin=1, jobs=1, schedu
     stack = _open(str(path), read)
     folder = Path(tempfile.mkdtemp(prefix=f".{output.name}.parts-", dir=output.parent))
     try:
-        spool = None
-        if stack.stack.sequential and stack.how != "stored order":
-            spool = str(folder / "stack.raw")
-            with room_for(output):
+        with room_for(output):
+            spool = None
+            if stack.stack.sequential and stack.how != "stored order":
+                spool = str(folder / "stack.raw")
                 _spool(stack.stack, spool, progress)
-            stack = _open(str(path), read, spool)
-        plan, meta = _plan(stack, str(path), read, prepare, bin, slab_voxels, spool)
-        parts = [(a, min(a + plan.slab, plan.grid[0])) for a in range(0, plan.grid[0], plan.slab)]   # a slab each
-        with room_for(output):
+                stack = _open(str(path), read, spool)
+            plan, meta = _plan(stack, str(path), read, prepare, slab_voxels, spool)
+            parts = [(a, min(a + plan.slab, plan.grid[0])) for a in range(0, plan.grid[0], plan.slab)]  # a slab each
             results = _run(plan, parts, folder, jobs, scheduler, progress, stack)
-        counts = np.concatenate([r["rows"] for r in results])
-        if not counts.any():
-            raise InputError(f"the {'windows' if len(plan.windows) > 1 else 'threshold'} "
-                             f"{', '.join(w.words() for w in plan.windows)} holds no voxel of {meta['source']}; "
-                             "choose another", parameter="preset" if prepare.tissues else "threshold")
-        with room_for(output):
+            counts = np.concatenate([r["rows"] for r in results])
+            if not counts.any():
+                raise InputError(f"the {'windows' if len(plan.windows) > 1 else 'threshold'} "
+                                 f"{', '.join(w.words() for w in plan.windows)} holds no voxel of {meta['source']}; "
+                                 "choose another", parameter="preset" if prepare.tissues else "threshold")
             written = _write(output, plan, meta, prepare, results, counts)
         return written | {"how": stack.how + " (inflated once)" * bool(spool)}
     finally:
@@ -173,8 +169,9 @@ def _spool(stored, path, progress, slab_bytes=SLAB_VOXELS * 2):
             f.write(np.ascontiguousarray(stored.read_slices(z, min(z + per, stored.shape[0]))).data)
 
 
-def _plan(stack, source, read, prepare, bin, slab_voxels, spool=None):
+def _plan(stack, source, read, prepare, slab_voxels, spool=None):
     """The :class:`Plan` of a stack and the meta its object will have (as :func:`encode_volume` makes it)."""
+    bin = prepare.bin
     region = tuple(slice(r.start or 0, r.stop if r.stop is not None else n)
                    for r, n in zip(prepare.crop or (slice(None),) * 3, stack.shape, strict=True))
     prep.crop(np.broadcast_to(np.zeros(1, np.int8), stack.shape), prepare.crop)         # checks the crop
@@ -484,8 +481,7 @@ def encode_file(path, output, read=None, prepare=None, *, octree=False, jobs=1, 
     started = time.perf_counter()
     streamed = not is_segments_file(path) and _streams(path, read, prepare, max_memory, jobs > 1 or scheduler)
     if streamed:
-        encode_stack(path, output, read, prepare, bin=prepare.bin, jobs=jobs, scheduler=scheduler,
-                     progress=progress)
+        encode_stack(path, output, read, prepare, jobs=jobs, scheduler=scheduler, progress=progress)
         loaded = load_segments(output)
     else:
         loaded = load_segments(path, read, prepare, progress)
