@@ -170,3 +170,12 @@ def test_binning_in_memory_is_the_preview_of_the_whole_and_labels_are_not_binned
     for args in (["render", str(tmp_path / "l.npy"), "--labels"], ["slices", str(tmp_path / "v.npy")]):
         done = runner.invoke(main, [*args, "--bin", "2", "-o", str(tmp_path / "x.png")])
         assert done.exit_code == 2 and "--bin" in done.output, done.output
+
+
+def test_a_mask_is_told_by_every_7th_slice_as_in_memory(tmp_path):
+    values = np.where(porous() > 1000, 100, 0).astype(np.int16)
+    between = np.arange(SHAPE[0]) % 7 != 0
+    values[between] = np.where(values[between] > 0, 50, 0)      # a third value, only off the sampled slices
+    np.save(tmp_path / "m.npy", values)
+    assert same_file(tmp_path, "m.npy", ReadOptions(), PrepOptions(threshold=30), slabs=(2, 5)).meta[
+        "normals_from"] == "the binary mask"

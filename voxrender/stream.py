@@ -210,28 +210,29 @@ def _plan(stack, source, read, prepare, slab_voxels, spool=None):
 def _survey(stack, region, bin, prepare):
     """What must be known of the whole stack before its first slab is encoded, as :func:`encode_volume` learns it
     from the whole array: whether it holds only two values (then the normals come from the mask), the lowest value
-    (what NaN and inf voxels take for the normals) and Otsu's threshold.  Integers with a threshold given need only
-    every 7th slice; Otsu's threshold and float values need one pass over all of them.
+    (what NaN and inf voxels take for the normals) and Otsu's threshold.  With a threshold given, integers need
+    only every 7th slice; Otsu's threshold needs a pass over every slice (16-bit integers are counted value by
+    value, which is all it needs), and float values a second one for its histogram.
     """
-    z0, z1 = region[0].start, region[0].stop
-    binned_slices = (z1 - z0) // bin
-    sampled = set(range(0, binned_slices, SAMPLE_STEP))
+    binned_slices = (region[0].stop - region[0].start) // bin
     otsu = prepare.threshold is prep.otsu_threshold and not prepare.tissues
-    every = otsu or stack.dtype.kind == "f"
     # the padding of the volume binarize sees: the whole one, or the cropped one binned
     whole = (slice(0, stack.shape[0]), slice(None), slice(None))
-    seen = _Sampled(stack, *((region, bin) if bin > 1 else (whole, 1)))
-    padding = prep.padding_value(seen) if otsu else None
-    low = high = lowest = None
-    sample, histogram, finite = [], None, True
-    chosen = range(binned_slices) if every else sorted(sampled)
-    for first in range(0, len(chosen), 16):
-        numbers = list(chosen[first:first + 16])
-        values = _binned(stack, region, bin, numbers)
-        for number, plane in zip(numbers, values, strict=True):
-            if number in sampled:
-                sample.append(plane[::SAMPLE_STEP, ::SAMPLE_STEP])
-        if every:
+    padding = prep.padding_value(_Sampled(stack, *((region, bin) if bin > 1 else (whole, 1)))) if otsu else None
+    counted = otsu and stack.dtype.kind in "iu" and stack.dtype.itemsize <= 2 and bin == 1
+    sample, low, high, lowest, finite = [], None, None, None, True
+    counts = np.zeros(1 << (8 * stack.dtype.itemsize), np.int64) if counted else None
+    offset = -int(np.iinfo(stack.dtype).min) if counted else 0
+    if otsu or stack.dtype.kind == "f":
+        for first in range(0, binned_slices, 16):
+            numbers = range(first, min(first + 16, binned_slices))
+            values = _binned(stack, region, bin, numbers)
+            sample += [plane[::SAMPLE_STEP, ::SAMPLE_STEP] for k, plane in zip(numbers, values, strict=True)
+                       if k % SAMPLE_STEP == 0]
+            if counted:
+                for part in prep._blocks(values, 1 << 23):
+                    counts += np.bincount(part.ravel().astype(np.int32) + offset, minlength=len(counts))
+                continue
             lo, hi, _ = prep._kept_range(values, padding)
             if lo is not None:
                 low, high = (lo, hi) if low is None else (min(low, lo), max(high, hi))
@@ -239,21 +240,32 @@ def _survey(stack, region, bin, prepare):
             finite &= all_finite
             if least is not None:
                 lowest = least if lowest is None else min(lowest, least)
+    else:
+        sample = [_binned(stack, region, bin, [k])[0, ::SAMPLE_STEP, ::SAMPLE_STEP]
+                  for k in range(0, binned_slices, SAMPLE_STEP)]
+    threshold = None
     if otsu:
+        if counted:                            # the values held, and how often: Otsu's histogram of them
+            held = np.flatnonzero(counts) - offset
+            kept = held[held != padding] if padding is not None else held
+            low, high = (float(kept.min()), float(kept.max())) if len(kept) else (None, None)
         prep.check_range(low, high, padding)
         edges = prep.otsu_bins(low, high)
-        histogram = np.zeros(len(edges) - 1, np.int64)
-        for first in range(0, binned_slices, 16):
-            values = _binned(stack, region, bin, list(range(first, min(first + 16, binned_slices))))
-            for part in prep._kept_parts(values, padding):
-                histogram += np.histogram(part, bins=edges)[0]
+        if counted:
+            histogram = np.histogram(kept, bins=edges, weights=counts[kept + offset])[0].astype(np.int64)
+        else:
+            histogram = np.zeros(len(edges) - 1, np.int64)
+            for first in range(0, binned_slices, 16):
+                values = _binned(stack, region, bin, range(first, min(first + 16, binned_slices)))
+                for part in prep._kept_parts(values, padding):
+                    histogram += np.histogram(part, bins=edges)[0]
+        threshold = prep.otsu_of_histogram(histogram, edges)
     sample = np.concatenate([np.asarray(s).ravel() for s in sample])
     fill = None
     if not finite:
         fill = lowest if lowest is not None else 0.0
         sample = np.where(np.isfinite(sample), sample, fill)
-    return {"binary": len(np.unique(sample)) <= 2, "fill": fill,
-            "otsu": prep.otsu_of_histogram(histogram, edges) if histogram is not None else None}
+    return {"binary": len(np.unique(sample)) <= 2, "fill": fill, "otsu": threshold}
 
 
 class _Sampled:
