@@ -115,6 +115,7 @@ def _open(path, level):
         try:
             part = array[tuple(take)]
         except _damaged_chunks() as exc:
+            _settle()
             raise InputError(f"{source}: the chunks holding slices {z0} to {z1 - 1} are damaged: "
                              f"{first_line(exc)}") from None
         part = np.asarray(part).reshape((z1 - z0,) + shape[1:])
@@ -256,6 +257,25 @@ def _damaged_metadata():
 def _damaged_chunks():
     """What zarr and its codecs raise for a cut or garbled chunk."""
     return (ValueError, RuntimeError, SystemError, OSError, EOFError, zlib.error)
+
+
+def _settle():
+    """Wait for the chunk reads zarr left running when one of them failed.
+
+    zarr reads the chunks of a slab as tasks gathered on its own event loop; the first to fail ends the read, and
+    the others stay pending, so that at exit the interpreter reports each as destroyed while pending (and a task
+    resumed on the closed loop raises), after the command's one error line.  They are waited for, not cancelled:
+    the loop is shared, and another thread's reads may be among them.
+    """
+    import asyncio
+
+    from zarr.core.sync import sync
+
+    async def the_others():
+        others = [task for task in asyncio.all_tasks() if task is not asyncio.current_task()]
+        await asyncio.gather(*others, return_exceptions=True)
+
+    sync(the_others())
 
 
 def _image(path):
