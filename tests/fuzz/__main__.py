@@ -1,6 +1,7 @@
-"""``python -m tests.fuzz [--seed S] [--cases N] [--jobs J] [--keep FOLDER] [--first K] [--lines FILE]``: run the
-fuzzing gate, print the count of cases by outcome and by format, keep every misbehaving case, exit 1 if any
-misbehaved; ``--lines`` also writes every case's outcome and last line, tab-separated, to read the messages."""
+"""``python -m tests.fuzz [--seed S] [--cases N] [--jobs J] [--keep FOLDER] [--first K] [--lines FILE]
+[--formats F,G]``: run the fuzzing gate, print the count of cases by outcome and by format, keep every misbehaving
+case, exit 1 if any misbehaved; ``--lines`` also writes every case's outcome and last line, tab-separated, to read
+the messages; ``--formats`` runs only the cases of some formats among those numbered."""
 
 import argparse
 import collections
@@ -22,11 +23,19 @@ def main(argv=None):
     parser.add_argument("--jobs", type=int, default=2, help="cases run at once (default 2)")
     parser.add_argument("--keep", type=Path, default=KEPT, help=f"where misbehaving cases go (default {KEPT})")
     parser.add_argument("--lines", type=Path, help="write each case's number, name, outcome and last line here")
+    parser.add_argument("--formats", help="only the cases of these formats (comma-separated), among the numbers "
+                                          "given: case n is of the format n modulo their number")
     args = parser.parse_args(argv)
 
     started = time.perf_counter()
     outcomes, by_format, bad = collections.Counter(), collections.defaultdict(collections.Counter), []
     numbers = range(args.first, args.first + args.cases)
+    if args.formats:
+        chosen = set(args.formats.split(","))
+        if chosen - set(FORMATS):
+            parser.error(f"unknown formats {', '.join(sorted(chosen - set(FORMATS)))}; choose among "
+                         f"{', '.join(sorted(FORMATS))}")
+        numbers = [n for n in numbers if sorted(FORMATS)[n % len(FORMATS)] in chosen]
     lines = open(args.lines, "w") if args.lines else None
     with ProcessPoolExecutor(args.jobs) as pool:
         for done, (number, name, fmt, outcome, tail) in enumerate(

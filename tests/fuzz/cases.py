@@ -6,6 +6,8 @@ A case damages the values it stores (NaN voxels, a constant volume, one voxel th
 formats take turns (``n`` modulo their number), so any count of cases is spread over all of them.
 """
 
+import dataclasses
+import functools
 import gzip
 import io
 import json
@@ -327,6 +329,155 @@ def text_header_mutation(rng, path, fields, separator):
     return description
 
 
+# ---- Zarr and OME-Zarr: JSON metadata ----
+
+# Values of a Zarr array's metadata fields (.zarray of format 2, zarr.json of format 3); the chunks' own key is
+# chunks in format 2, chunk_grid's chunk_shape in format 3.
+ZARR_FIELDS = {
+    "shape": [[0, 22, 20], [30000, 30000, 30000], [18, 22], [18, 22, 20, 2], [-1, 22, 20], "abc", [2**40, 2, 2],
+              [1, 1, 1], [36, 44, 40], [2, 18, 22, 20], None],
+    "chunks": [[0, 8, 8], [-1, 8, 8], [1, 1, 1], [30000, 30000, 30000], [2**31, 1, 1], [4, 8], "x", [3, 5, 7],
+               [8, 8, 4], None],
+    "dtype": {2: ["<f8", ">i2", "|b1", "<U4", "|O", "|V2", "<c8", "<M8[s]", "<f2", "bogus", "|u1", "<i8", None],
+              3: ["float64", "bool", "complex64", "string", "bogus", "int8", "uint64", "float16", "r16", None,
+                  {"name": "bogus"}]},
+    "compressor": [None, {"id": "zlib", "level": 1}, {"id": "bogus"}, {"id": "blosc", "cname": "bogus"}, "x",
+                   {"id": "gzip", "level": 1}, {"id": "zstd", "level": 99}],
+    "codecs": [[], [{"name": "bytes", "configuration": {"endian": "little"}}], [{"name": "bogus"}],
+               [{"name": "bytes", "configuration": {"endian": "big"}}, {"name": "zstd"}],
+               [{"name": "gzip", "configuration": {"level": 1}}], "x", None,
+               [{"name": "transpose", "configuration": {"order": [2, 1, 0]}}, {"name": "bytes"}, {"name": "zstd"}],
+               [{"name": "sharding_indexed", "configuration": {"chunk_shape": [2, 4, 4], "codecs": [
+                   {"name": "bytes"}], "index_codecs": [{"name": "bytes"}]}}],
+               [{"name": "bytes"}, {"name": "crc32c"}, {"name": "zstd"}]],
+    "fill_value": [None, "NaN", "Infinity", "abc", 1e300, -1, [1, 2], 70000, True, "AAAA"],
+    "order": ["F", "X", None],
+    "filters": [[{"id": "bogus"}], [{"id": "delta", "dtype": "<f8"}], "x", [{"id": "fixedscaleoffset", "offset": 0,
+                                                                             "scale": 1e300, "dtype": "<f8"}]],
+    "zarr_format": [1, 4, "x", None],
+    "dimension_separator": ["/", "x", None],
+    "node_type": ["group", "bogus", None],
+    "chunk_key_encoding": [{"name": "v2", "configuration": {"separator": "."}}, {"name": "bogus"}, None,
+                           {"name": "default", "configuration": {"separator": "x"}}],
+    "dimension_names": [["a"], [1, 2, 3], "x", ["z", "y", "x"]],
+    "storage_transformers": [[{"name": "bogus"}]],
+}
+FORMAT_2_KEYS = ("shape", "chunks", "dtype", "compressor", "fill_value", "order", "filters", "zarr_format",
+                 "dimension_separator")
+FORMAT_3_KEYS = ("shape", "chunks", "dtype", "codecs", "fill_value", "zarr_format", "node_type", "chunk_key_encoding",
+                 "dimension_names", "storage_transformers")
+
+
+def zarr_array_mutation(rng, path):
+    """Set or drop one field of a Zarr array's metadata (``.zarray`` or ``zarr.json``) and write it back as JSON."""
+    metadata = json.loads(path.read_bytes())
+    zarr_format = 3 if path.name == "zarr.json" else 2
+    key = rng.choice(FORMAT_3_KEYS if zarr_format == 3 else FORMAT_2_KEYS)
+    values = ZARR_FIELDS[key]
+    value = rng.choice(values[zarr_format] if isinstance(values, dict) else values)
+    place, name = metadata, {"dtype": "data_type"}.get(key, key) if zarr_format == 3 else key
+    if key == "chunks" and zarr_format == 3:
+        place, name = metadata["chunk_grid"]["configuration"], "chunk_shape"
+    if value is None:
+        place.pop(name, None)
+    else:
+        place[name] = value
+    path.write_text(json.dumps(metadata))
+    return f"{path.parent.name}/{path.name} {name}={'deleted' if value is None else repr(value)[:40]}"
+
+
+# Values of an OME-Zarr image's multiscales metadata (axes, datasets and their transformations, units, version).
+OME_AXES = [[], ["z", "y"], ["z", "y", "x"], [{"name": "z", "type": "space"}] * 3, [{"name": 1}] * 3, "abc", None,
+            [{"name": "t", "type": "time"}, {"name": "y", "type": "space"}, {"name": "x", "type": "space"}],
+            [{"name": "c", "type": "channel"}, {"name": "z", "type": "space"}, {"name": "y", "type": "space"},
+             {"name": "x", "type": "space"}], [1, 2, 3]]
+OME_UNITS = ["parsec", "angstrom", "yoctometer", "bogus", "", None, 7, "kilometer", "second"]
+OME_ORIENTATIONS = ["left-to-right", "bogus", None, 3, {"type": "anatomical"}, "left-to-right twice"]
+OME_DATASETS = [[], [{"path": "9"}], [{"path": 0}], "x", "reversed", "twice", [{"path": "../0"}], [{"path": ""}],
+                [{"path": "0/c"}], None, [{}]]
+OME_NUMBERS = [0.0, -1.0, math.nan, math.inf, 1e308, 1e-300, "abc", None, True]
+OME_TRANSFORMS = [[], "x", None, [{"type": "bogus"}], [{"type": "scale", "path": "scale.bin"}],
+                  [{"type": "scale", "scale": [1.0, 1.0]}], [{"type": "affine", "affine": [[1, 0, 0, 0]] * 3}],
+                  [{"type": "translation", "translation": [1.0, 2.0, 3.0]}, {"type": "scale", "scale": [2, 2, 2]}],
+                  [{"type": "identity"}], ["scale"]]
+
+
+def ome_zarr_mutation(rng, seed):
+    """Damage an OME-Zarr image's metadata: a field of its ``multiscales`` (axes, units, orientations, datasets,
+    their coordinate transformations and scales, the version, the image's own transformations), a level's array
+    metadata (:func:`zarr_array_mutation`), or a level's metadata or folder removed."""
+    header = seed.files[0]
+    whole = json.loads(header.read_bytes())
+    attrs = whole if header.name == ".zattrs" else whole["attributes"]["ome"]
+    image = attrs["multiscales"][0]
+    levels = [d["path"] for d in image["datasets"]]
+    kind = rng.choice(["axes", "unit", "orientation", "datasets", "transforms", "scale", "translation", "version",
+                       "multiscales", "image transforms", "level metadata", "level metadata", "level removed",
+                       "channels"])
+    if kind == "level metadata":
+        level = header.parent / rng.choice(levels)
+        return zarr_array_mutation(rng, level / (".zarray" if (level / ".zarray").exists() else "zarr.json"))
+    if kind == "level removed":
+        level = header.parent / rng.choice(levels)
+        if rng.random() < 0.5:
+            shutil.rmtree(level)
+            return f"level {level.name} removed"
+        metadata = level / (".zarray" if (level / ".zarray").exists() else "zarr.json")
+        metadata.unlink()
+        return f"{level.name}/{metadata.name} removed"
+    if kind == "axes":
+        value = rng.choice(OME_AXES)
+        image["axes"] = value
+    elif kind in ("unit", "orientation"):
+        axis = rng.randrange(3)
+        value = rng.choice(OME_UNITS if kind == "unit" else OME_ORIENTATIONS)
+        if kind == "unit":
+            image["axes"][axis]["unit"] = value
+        elif value == "left-to-right twice":
+            for k in (0, 1):
+                image["axes"][k]["orientation"] = {"type": "anatomical", "value": "left-to-right"}
+        else:
+            image["axes"][axis]["orientation"] = {"type": "anatomical", "value": value} if isinstance(
+                value, str | None) else value
+        kind = f"axes[{axis}].{kind}"
+    elif kind == "datasets":
+        value = rng.choice(OME_DATASETS)
+        image["datasets"] = image["datasets"][::-1] if value == "reversed" else \
+            image["datasets"][:1] * 2 if value == "twice" else value
+    elif kind == "transforms":
+        level, value = rng.randrange(len(levels)), rng.choice(OME_TRANSFORMS)
+        image["datasets"][level]["coordinateTransformations"] = value
+        kind = f"datasets[{level}].coordinateTransformations"
+    elif kind in ("scale", "translation"):
+        level, axis, value = rng.randrange(len(levels)), rng.randrange(3), rng.choice(OME_NUMBERS)
+        index = 0 if kind == "scale" else 1
+        image["datasets"][level]["coordinateTransformations"][index][kind][axis] = value
+        kind = f"datasets[{level}].{kind}[{axis}]"
+    elif kind == "version":
+        value = rng.choice(["0.1", "9.9", None, 4, ""])
+        attrs["version"] = image["version"] = value
+    elif kind == "multiscales":
+        value = rng.choice([None, [], "x", [1], "twice"])
+        attrs["multiscales"] = attrs["multiscales"] * 2 if value == "twice" else value
+    elif kind == "image transforms":
+        value = rng.choice(OME_TRANSFORMS[1:] + [[{"type": "scale", "scale": [0.0, 1.0, 1.0]}],
+                                                 [{"type": "scale", "scale": [1e300, 1e300, 1e300]}]])
+        image["coordinateTransformations"] = value
+    else:
+        value = rng.choice([{"channels": [{"label": "a"}, {"label": "b"}]}, "x", {"channels": "x"}, [1]])
+        attrs["omero"] = value
+    header.write_text(json.dumps(whole))
+    return f"ome {kind}={value!r:.40}"
+
+
+def _zarr_header(rng, seed):
+    return zarr_array_mutation(rng, seed.files[0])
+
+
+def _ome_zarr_header(rng, seed):
+    return ome_zarr_mutation(rng, seed)
+
+
 # ---- DICOM: data elements through pydicom ----
 
 def _dicom_elements():
@@ -523,6 +674,7 @@ class Format:
     header: object = None
     values: bool = True          # whether the writer stores any values a mutation gives it
     gzip: bool = False
+    versions: tuple = ()         # the writer's keyword options a case draws one of (a Zarr format, NGFF version)
 
 
 def _nifti_header(rng, seed):
@@ -742,6 +894,10 @@ FORMATS = {
     "npy": Format(seeds.npy, _npy_header),
     "vxs": Format(seeds.segments_file, _vxs_header),
     "vxo": Format(seeds.segments_octree, _vxs_header),
+    "zarr": Format(seeds.zarr_array, _zarr_header, versions=({"zarr_format": 2}, {"zarr_format": 3})),
+    "ome-zarr": Format(seeds.ome_zarr, _ome_zarr_header, versions=(
+        {"version": "0.4", "levels": 2}, {"version": "0.4", "levels": 3}, {"version": "0.5", "levels": 2},
+        {"version": "0.5", "levels": 3})),
     "manifest-csv": Format(seeds.manifest_csv, values=False),
     "manifest-toml": Format(seeds.manifest_toml, values=False),
     "colours-csv": Format(seeds.colour_table, values=False),
@@ -749,6 +905,9 @@ FORMATS = {
     "colours-ctbl": Format(seeds.colour_ctbl, values=False),
     "colours-itksnap": Format(seeds.colour_itksnap, values=False),
 }
+
+
+BOOLEANS = ("npy", "zarr", "ome-zarr")       # the formats that store booleans
 
 
 def make_case(seed, number, case):
@@ -771,13 +930,15 @@ def _make_case(seed, number, case):
                   "itksnap": seeds.colour_itksnap}[name.split("-")[1]]
         seed_file, what = colour_mutation(rng, case, values, writer)
     else:
+        drawn = rng.choice(fmt.versions) if fmt.versions else {}
+        fmt = dataclasses.replace(fmt, write=functools.partial(fmt.write, **drawn))
         kinds = ["values", "header", "header", "bytes"]
         if fmt.header is None:
             kinds = ["values", "variant", "variant", "bytes"]
         kind = rng.choice(kinds)
         if kind == "values":
             what, values = value_mutations(rng, values)
-            if values.dtype == bool and name != "npy":     # the other formats store no booleans
+            if values.dtype == bool and name not in BOOLEANS:     # the other formats store no booleans
                 values = values.astype(np.uint8)
             seed_file = fmt.write(case, values, spacing, direction)
         elif kind == "variant":
@@ -791,22 +952,45 @@ def _make_case(seed, number, case):
                 what = gzip_mutation(rng, seed_file.files[0])
             else:
                 what = byte_mutation(rng, rng.choice(seed_file.files))
+        what = "".join(f"{key}={value} " for key, value in drawn.items()) + what
     return Case(f"{name}/{what}", name, commands_for(rng, seed_file))
 
 
 def commands_for(rng, seed):
     """The voxrender command lines of a case: render (or batch) at 64 pixels, sometimes a threshold, sometimes
-    ``info`` too, and sometimes the QC commands (:func:`qc_commands`)."""
+    ``info`` too, sometimes the QC commands (:func:`qc_commands`) and the streamed encode (:func:`encode_command`)."""
     if seed.command == "batch":
         return [["batch", "--manifest", "{case}/" + seed.path, "-o", "{out}/batch", "--size", "64"]]
-    options = [o if not o.startswith(seeds.INPUT + "/") else "{case}/" + o for o in seed.options]
+    options = case_options(seed)
     render = ["render", "{case}/" + seed.path, "-o", "{out}/x.png", "--size", "64", *options]
     if rng.random() < 0.3 and "--labels" not in options and not seed.path.endswith((".vxs", ".vxo")):
         render += ["--threshold", rng.choice(["500", "100:900", "-1000"])]
     commands = [render]
     if rng.random() < 0.25 and not seed.path.endswith((".vxs", ".vxo")) and "--colours" not in options:
         commands.append(["info", "{case}/" + seed.path, *[o for o in options if o != "--labels"]])
-    return commands + qc_commands(rng, seed, options)
+    commands += qc_commands(rng, seed, options)
+    if rng.random() < 0.4 and not seed.path.endswith((".vxs", ".vxo")):
+        commands.append(encode_command(rng, seed, options))
+    return commands
+
+
+def case_options(seed):
+    """The options of a seed, the files they name in the case's folder."""
+    return [o if not o.startswith(seeds.INPUT + "/") else "{case}/" + o for o in seed.options]
+
+
+def encode_command(rng, seed, options):
+    """Issue 24's streamed encode of a case's input (``--max-memory 1K`` streams any input whose reader opens
+    slabs), sometimes binned, on worker processes, at a level of a multiscale image, or with a threshold: its grey
+    values' object, so without the seed's label options."""
+    command = ["encode", "{case}/" + seed.path, "-o", "{out}/x.vxs", "--max-memory", "1K",
+               *_without(options, "--labels", "--colours", "--labels-from")]
+    extra = rng.choice([[], [], ["--bin", "2"], ["--jobs", "2"], ["--bin", "2", "--jobs", "2"]])
+    if seed.path.endswith(".zarr") and rng.random() < 0.5:
+        extra += ["--level", rng.choice(["0", "1", "2", "5"])]
+    if rng.random() < 0.3:
+        extra += ["--threshold", rng.choice(["500", "100:900", "-1000"])]
+    return command + extra
 
 
 # The DICOM seeds' inputs (a classic series, an enhanced file, the CT of a SEG or an RTSTRUCT): a picture of them
@@ -851,13 +1035,16 @@ def qc_commands(rng, seed, options):
     return commands
 
 
+TAKE_A_FILE = ("--colours", "--labels-from")
+
+
 def _without(options, *flags):
-    """``options`` without ``flags``, ``--colours`` with its file."""
+    """``options`` without ``flags``, those that take a file (``--colours``, ``--labels-from``) with it."""
     kept, skip = [], False
     for option in options:
         if not skip and option not in flags:
             kept.append(option)
-        skip = option == "--colours" and option in flags
+        skip = option in TAKE_A_FILE and option in flags and not skip
     return kept
 
 

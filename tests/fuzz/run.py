@@ -20,6 +20,7 @@ TIME_LIMIT = 60                     # seconds per command
 GOOD = ("picture", "bad input")
 MISBEHAVIOURS = ("internal error", "signal", "timeout", "memory", "traceback", "partial output", "output escaped",
                  "input modified", "bad input message", "not generated")
+NOTES = ("warning: ", "note: ")     # lines a command may print before its error line
 KEPT = Path(__file__).resolve().parents[1] / "fuzz_cases"
 PICTURE_COMMANDS = ("render", "slices", "sheet")    # each writes its picture to -o, and to --dicom-out if given
 
@@ -44,7 +45,8 @@ def run_command(command, case, out):
 
 def classify(command, status, lines, out):
     """The outcome of a ``command`` line from its exit ``status``, its stderr ``lines`` and its output folder
-    ``out``: a picture command must write exactly its picture (``x.png``, and ``x.dcm`` when asked), each readable."""
+    ``out``: a picture command must write exactly its picture (``x.png``, and ``x.dcm`` when asked), each readable,
+    and an encode exactly its ``x.vxs``, readable (its outcome is then called ``"picture"`` too)."""
     name = command[0]
     if status < 0:
         return "signal"
@@ -53,16 +55,20 @@ def classify(command, status, lines, out):
     if status == 1:
         return "memory" if any("out of memory" in line or "MemoryError" in line for line in lines) else \
             "internal error"
-    messages = [line for line in lines if not line.startswith("warning: ")]
+    messages = [line for line in lines if not line.startswith(NOTES)]
     if name == "batch":
         return _batch_outcome(status, messages, out / "batch")
     if status == 0:
         if name in PICTURE_COMMANDS:
             return "picture" if _only_picture(out, dicom="--dicom-out" in command) else "partial output"
+        if name == "encode":
+            return "picture" if _only_segments(out) else "partial output"
         return "picture"
+    # an encode leaves nothing on bad input, not even the empty folder of its streamed parts
+    left = list(out.rglob("*")) if name == "encode" else _files(out)
     if status == 2 and len(messages) == 1 and messages[0].startswith("error: "):
-        return "bad input" if not _files(out) else "partial output"
-    return "internal error" if status != 2 else "partial output" if _files(out) else "bad input message"
+        return "bad input" if not left else "partial output"
+    return "internal error" if status != 2 else "partial output" if left else "bad input message"
 
 
 def _batch_outcome(status, messages, folder):
@@ -106,6 +112,20 @@ def _only_picture(out, dicom=False):
     files = sorted(_files(out))
     expected = [out / "x.dcm", out / "x.png"] if dicom else [out / "x.png"]
     return files == expected and _reads(out / "x.png") and (not dicom or _reads_dicom(out / "x.dcm"))
+
+
+def _only_segments(out):
+    """Whether ``out`` holds ``x.vxs``, nothing else (no parts of a streamed encode left behind), and
+    :func:`voxrender.segments.load` reads it."""
+    if sorted(out.rglob("*")) != [out / "x.vxs"]:
+        return False
+    try:
+        from voxrender import segments
+
+        segments.load(out / "x.vxs")
+        return True
+    except Exception:  # noqa: BLE001 - any failure to read the file is what this looks for
+        return False
 
 
 def _reads(picture):
@@ -188,20 +208,28 @@ def run_case(seed, number, keep=KEPT):
 
 
 def run_seed(name):
-    """Write the valid seed file of format ``name``, undamaged, and run its render (or batch); its outcome."""
+    """Write the valid seed file of format ``name``, undamaged, and run its render (or batch), then its streamed
+    encode (but of a batch or an encoded input); its outcome."""
     with tempfile.TemporaryDirectory(prefix="fuzz-seed-") as scratch:
         case = Path(scratch)
         (case / cases.seeds.INPUT).mkdir()
         values, spacing, direction = cases.seeds.phantom_stored()
         seed = cases.FORMATS[name].write(case, values, spacing, direction)
-        return run_in(case, cases.commands_for(_NoExtras(), seed))
+        commands = cases.commands_for(_NoExtras(), seed)
+        if seed.command != "batch" and not seed.path.endswith((".vxs", ".vxo")):
+            commands.append(cases.encode_command(_NoExtras(), seed, cases.case_options(seed)))
+        return run_in(case, commands)
 
 
 class _NoExtras:
-    """A stand-in for the case's random choices that adds no threshold and no ``info``."""
+    """A stand-in for the case's random choices that adds no threshold, no ``info`` and no other command, and
+    takes the first of any choice."""
 
     def random(self):
         return 1.0
+
+    def choice(self, items):
+        return items[0]
 
 
 def replay(kept):

@@ -250,6 +250,57 @@ def png_folder(case, values, spacing=SPACING, direction=None):
     return Seed(f"{INPUT}/slices", files=files)
 
 
+def zarr_array(case, values, spacing=SPACING, direction=None, zarr_format=2):
+    """A plain Zarr array (format 2 or 3) of chunks 4x8x8 (zarr); no spacing."""
+    import zarr
+
+    path = case / INPUT / "x.zarr"
+    zarr.create_array(store=str(path), data=values, chunks=(4, 8, 8), zarr_format=zarr_format)
+    return Seed(f"{INPUT}/{path.name}", files=_zarr_files(path, ".zarray" if zarr_format == 2 else "zarr.json"))
+
+
+# The side an axis grows toward (a letter of orient's codes) as NGFF RFC-4's anatomical orientation.
+ANATOMICAL = {"R": "left-to-right", "L": "right-to-left", "P": "anterior-to-posterior", "A": "posterior-to-anterior",
+              "S": "inferior-to-superior", "I": "superior-to-inferior"}
+
+
+def ome_zarr(case, values, spacing=SPACING, direction=None, version="0.4", levels=3):
+    """An OME-Zarr image (NGFF ``version``, 0.4 in a format-2 group's attributes, 0.5 under ``"ome"`` in a format-3
+    group's) of ``levels`` levels, each half the last along every axis, written as ``tests/io/test_zarr.py``'s
+    ``write_ome`` writes them: zarr groups whose attributes are laid out as NGFF says.  The spacing is the scale in
+    micrometres, the direction the axes' anatomical orientation (NGFF RFC-4)."""
+    import zarr
+
+    from voxrender import orient
+
+    path = case / INPUT / "x.ome.zarr"
+    zarr_format = 2 if version == "0.4" else 3
+    group = zarr.open_group(str(path), mode="w", zarr_format=zarr_format)
+    code = orient.code_of(_direction(direction))                 # x, y, z
+    axes = [{"name": name, "type": "space", "unit": "micrometer",
+             "orientation": {"type": "anatomical", "value": ANATOMICAL[side]}}
+            for name, side in zip("zyx", code[::-1], strict=True)]
+    datasets = []
+    for k in range(levels):
+        step = (slice(None, None, 2 ** k),) * 3
+        group.create_array(str(k), data=np.ascontiguousarray(values[step]), chunks=(4, 8, 8))
+        datasets.append({"path": str(k), "coordinateTransformations": [
+            {"type": "scale", "scale": [1000.0 * s * 2 ** k for s in spacing[::-1]]},
+            {"type": "translation", "translation": [0.0, 100.0, -250.0]}]})
+    multiscales = [{"name": "image", "axes": axes, "datasets": datasets} |
+                   ({"version": version} if zarr_format == 2 else {})]
+    group.attrs.update({"multiscales": multiscales} if zarr_format == 2 else
+                       {"ome": {"version": version, "multiscales": multiscales}})
+    header = path / (".zattrs" if zarr_format == 2 else "zarr.json")
+    return Seed(f"{INPUT}/{path.name}", files=_zarr_files(path, header.name))
+
+
+def _zarr_files(path, header):
+    """The files of a Zarr store, its ``header`` (metadata) file first, then the others (metadata and chunks)."""
+    first = path / header
+    return [first, *sorted(p for p in path.rglob("*") if p.is_file() and p != first)]
+
+
 def npy(case, values, spacing=SPACING, direction=None):
     path = case / INPUT / "x.npy"
     np.save(path, values)
