@@ -179,3 +179,16 @@ def test_a_mask_is_told_by_every_7th_slice_as_in_memory(tmp_path):
     np.save(tmp_path / "m.npy", values)
     assert same_file(tmp_path, "m.npy", ReadOptions(), PrepOptions(threshold=30), slabs=(2, 5)).meta[
         "normals_from"] == "the binary mask"
+
+
+def test_info_says_how_a_stack_would_be_streamed(tmp_path):
+    from click.testing import CliRunner
+
+    from voxrender.cli import main
+
+    np.save(tmp_path / "v.npy", porous())
+    runner = CliRunner()
+    for code, words in (("LPS", "in stored order"), ("LPI", "from the far end"), ("PIR", "bounded memory, slower")):
+        done = runner.invoke(main, ["info", str(tmp_path / "v.npy"), "--orientation", code, "--threshold", "1000"])
+        assert done.exit_code == 0, done.output
+        assert words in [line for line in done.output.splitlines() if line.startswith("streamed:")][0]
