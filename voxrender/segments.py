@@ -366,6 +366,7 @@ def read_sections(path):
             if dtype.kind not in "biuf" or begin < 0 or count < 0 or data_start + begin + count * dtype.itemsize > size:
                 raise _damaged(path, f"its array {name} ({count} of {dtype}) is not within the file")
             arrays[name] = raw[data_start + begin:data_start + begin + count * dtype.itemsize].view(dtype)
+        header["data_start"] = data_start             # where the arrays' offsets count from, for checks in blocks
     except InputError:
         raise
     except (OSError, ValueError, KeyError, IndexError, TypeError, AttributeError) as exc:
@@ -376,6 +377,21 @@ def read_sections(path):
 def _damaged(path, what):
     kind = ".vxo" if Path(path).suffix.lower() == ".vxo" else ".vxs"
     return InputError(f"{path} is a damaged {kind} file ({what}); encode it again")
+
+
+def _blocks(path, header, name, array, overlap=0, count=1 << 24):
+    """The values of a file's array a block at a time, read from the file and not through its mapping (whose
+    pages, once touched, would stay resident: a large object's normals are gigabytes), each block with the first
+    ``overlap`` values of the next.
+    """
+    start = header.get("data_start")
+    if start is None or not array.size:           # not from a file (or empty): the array itself
+        yield np.asarray(array)
+        return
+    start += int(header["arrays"][name]["offset"])
+    for first in range(0, array.size, count):
+        yield np.fromfile(path, array.dtype, count=min(count + overlap, array.size - first),
+                          offset=start + first * array.dtype.itemsize)
 
 
 def is_mapped(array):
@@ -421,15 +437,17 @@ def from_sections(header, arrays, path):
     if (offsets.size != shape[0] * shape[1] + 1 or offsets[0] != 0 or starts.size != offsets[-1]
             or ends.size != starts.size or np.any(offsets[1:] < offsets[:-1])):
         raise _damaged(path, "index and runs disagree")
-    if starts.size and (starts.min() < 0 or ends.max() >= shape[2] or np.any(starts > ends)):
-        raise _damaged(path, "runs leave their grid")
+    for first, last in zip(_blocks(path, header, "starts", starts), _blocks(path, header, "ends", ends), strict=True):
+        if first.size and (first.min() < 0 or last.max() >= shape[2] or np.any(first > last)):
+            raise _damaged(path, "runs leave their grid")
     normals = None
     if "normal_index" in arrays:                 # files written before normals were kept have none
         from .normals import SurfaceNormals
 
         index, packed = arrays["normal_index"], arrays.get("normal_packed", np.zeros(1, np.int16))
-        if (packed.size != 2 * index.size
-                or index.size and (index[0] < 0 or index[-1] >= math.prod(shape) or np.any(index[1:] <= index[:-1]))):
+        rising = all(np.all(block[1:] > block[:-1]) for block in _blocks(path, header, "normal_index", index, 1))
+        if packed.size != 2 * index.size or index.size and (index[0] < 0 or index[-1] >= math.prod(shape)
+                                                            or not rising):
             raise _damaged(path, "surface normals and their voxels disagree")
         normals = SurfaceNormals(shape, index, packed.reshape(-1, 2), str(meta.get("normals_from", "grey values")))
     labels = arrays.get("labels")           # single-object files have none
