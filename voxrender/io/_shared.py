@@ -383,8 +383,9 @@ def check_fits(shape, dtype, source, held=None):
         if held is not None:
             check_holds(source, nbytes, held(nbytes))
         raise InputError(f"{source}: its {'x'.join(str(int(n)) for n in shape)} {np.dtype(dtype).name} voxels take "
-                         f"{in_words(nbytes)}, more than the {in_words(free)} of memory free here; voxrender reads a "
-                         "volume whole, so cut it down to a subregion or coarser voxels first")
+                         f"{in_words(nbytes)}, more than the {in_words(free)} of memory free here, and this reads a "
+                         "volume whole: encode it into a .vxs first, which reads it a slab at a time (and can bin "
+                         "it), or cut it down to a subregion")
     return nbytes
 
 
