@@ -65,6 +65,9 @@ def test_the_cases_say_how_the_stack_is_read(tmp_path):
     (ReadOptions(spacing=(1, 1, 1.4)), PrepOptions(threshold=None, tissues=(
         ("soft", prep.Window(600, 1200), (1, 0, 0)), ("bone", prep.Window(1200), (0, 1, 0))))),
     (ReadOptions(), PrepOptions(threshold=1000, voxel=0.6)),                            # finer than the input
+    (ReadOptions(spacing=(1.0, 1.0, 2.0)), PrepOptions(bin=2)),                         # Otsu of binned values
+    (ReadOptions(spacing=(1, 1, 1.000001)), PrepOptions(threshold=1000)),               # all but cubic
+    (ReadOptions(spacing=(1.000001, 1, 1), orientation="SLP"), PrepOptions(threshold=1000)),
 ])
 def test_every_step_of_the_selection_gives_the_same_file(tmp_path, read, prepare):
     np.save(tmp_path / "v.npy", porous())
@@ -79,6 +82,28 @@ def test_float_values_with_nan_and_a_binary_mask(tmp_path):
     np.save(tmp_path / "b.npy", (porous() > 1000).astype(np.uint8))
     assert same_file(tmp_path, "b.npy", ReadOptions(orientation="SLA"), PrepOptions(threshold=1)).meta[
         "normals_from"] == "the binary mask"
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_otsu_of_float_values_gives_the_same_file(tmp_path, seed):
+    np.save(tmp_path / "f.npy", porous(seed=seed).astype(np.float32) * np.float32(0.37))
+    same_file(tmp_path, "f.npy", ReadOptions(), PrepOptions())
+
+
+def test_a_stack_that_changed_is_read_anew(tmp_path):
+    np.save(tmp_path / "v.npy", porous())
+    encode_stack(tmp_path / "v.npy", tmp_path / "a.vxs", ReadOptions(), PrepOptions(threshold=1000))
+    np.save(tmp_path / "v.npy", porous((20, 30, 40)))
+    assert encode_stack(tmp_path / "v.npy", tmp_path / "b.vxs", ReadOptions(),
+                        PrepOptions(threshold=1000))["shape"] == (20, 30, 40)
+
+
+def test_a_crop_of_too_few_axes_is_refused_as_in_memory(tmp_path):
+    np.save(tmp_path / "v.npy", porous())
+    with pytest.raises(InputError) as error:
+        encode_stack(tmp_path / "v.npy", tmp_path / "o.vxs", ReadOptions(),
+                     PrepOptions(threshold=1000, crop=(slice(1, 5),)))
+    assert error.value.parameter == "crop"
 
 
 def test_parts_on_worker_processes_give_the_same_file(tmp_path):
@@ -150,6 +175,9 @@ def test_an_octree_build_over_the_memory_allowed_is_refused_before_it_starts(tmp
         assert done.exit_code == 2 and "--max-memory" in done.output and "binned by 2" in done.output, done.output
         assert done.output.count("\n") == 1
     assert sorted(p.name for p in tmp_path.iterdir()) == ["v.npy"]
+    done = runner.invoke(main, ["encode", str(tmp_path / "v.npy"), "--octree", "--threshold", "1000",   # streamed
+                                "--max-memory", "1K", "-o", str(tmp_path / "o.vxo")])
+    assert done.exit_code == 2 and sorted(p.name for p in tmp_path.iterdir()) == ["v.npy"], done.output
     done = runner.invoke(main, ["render", str(tmp_path / "v.npy"), "--method", "ftb", "--threshold", "1000",
                                 "--max-memory", "10K", "-o", str(tmp_path / "o.png")])
     assert done.exit_code == 0, done.output

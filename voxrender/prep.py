@@ -177,17 +177,20 @@ def otsu_threshold(values, padding=None):
     values = np.asarray(values)
     low, high, whole = _kept_range(values, padding)
     check_range(low, high, padding)
+    edges = otsu_bins(low, high, values.dtype)
     if whole:                                   # every value counts: one histogram, no copy
-        counts, edges = np.histogram(values, bins=1024, range=(low, high))
+        counts = np.histogram(values, bins=edges)[0]
     else:
-        edges = otsu_bins(low, high)
         counts = sum(np.histogram(part, bins=edges)[0] for part in _kept_parts(values, padding))
     return otsu_of_histogram(counts, edges)
 
 
-def otsu_bins(low, high):
-    """The edges of the 1024 bins :func:`otsu_threshold` counts values in, from the lowest to the highest."""
-    return np.histogram_bin_edges([], bins=1024, range=(low, high))
+def otsu_bins(low, high, dtype):
+    """The edges of the 1024 bins :func:`otsu_threshold` counts values of ``dtype`` in, from the lowest to the
+    highest: of the type NumPy would give them for such values (float32 for float32 values), so that values
+    counted a slab at a time fall in the same bins.
+    """
+    return np.histogram_bin_edges(np.zeros(0, dtype), bins=1024, range=(low, high))
 
 
 def otsu_of_histogram(counts, edges):

@@ -20,6 +20,7 @@ import math
 import shutil
 import tempfile
 import time
+import uuid
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -28,7 +29,16 @@ import numpy as np
 from . import io, prep, segments
 from .errors import InputError
 from .normals import stencil_radius, surface_normals
-from .pipeline import PrepOptions, ReadOptions, grey_sampler, grid_step, load_segments, machine_memory, source_meta
+from .pipeline import (
+    PrepOptions,
+    ReadOptions,
+    grey_sampler,
+    grid_step,
+    load_segments,
+    machine_memory,
+    on_input_grid,
+    source_meta,
+)
 
 SLAB_VOXELS = 1 << 26          # input voxels read at a time (128 MB of 16-bit slices)
 NORMAL_VOXELS = 1 << 24        # grid voxels whose band's normals are found at a time (their stencils are large)
@@ -47,7 +57,7 @@ class Plan:
 
     source: str
     read: ReadOptions
-    shape: tuple            # the canonical stack's
+    token: str              # this encode's: a worker that stays (Dask) opens the stack again for the next one
     region: tuple           # (z, y, x) slices of the canonical stack: the crop
     bin: int
     windows: tuple          # prep.Window each: the object (one) or its tissues, numbered 1, 2, ...
@@ -55,6 +65,7 @@ class Plan:
     voxel: float
     binned_spacing: tuple   # of the cropped, binned input
     resampled: bool
+    on_grid: bool           # the normals take the grey values of the grid's own voxels (pipeline.on_input_grid)
     normals_from: str       # "grey values" or "the binary mask"
     fill: float | None      # the value NaN and inf voxels take for the normals (the lowest), when there are any
     slab: int               # grid slices per slab
@@ -108,7 +119,8 @@ def encode_stack(path, output, read=None, prepare=None, *, jobs=1, scheduler=Non
         raise InputError("removing small pieces needs the whole object at once; drop it to stream the stack",
                          parameter="min_object")
     output = Path(output)
-    stack = _open(str(path), read)
+    token = uuid.uuid4().hex
+    stack = _open(str(path), read, token)
     folder = Path(tempfile.mkdtemp(prefix=f".{output.name}.parts-", dir=output.parent))
     try:
         with room_for(output):
@@ -116,19 +128,21 @@ def encode_stack(path, output, read=None, prepare=None, *, jobs=1, scheduler=Non
             if stack.stack.sequential and stack.how != "stored order":
                 spool = str(folder / "stack.raw")
                 _spool(stack.stack, spool, progress)
-                stack = _open(str(path), read, spool)
-            plan, meta = _plan(stack, str(path), read, prepare, slab_voxels, spool)
+                stack = _open(str(path), read, token, spool)
+            plan, meta = _plan(stack, str(path), read, prepare, slab_voxels, token, spool)
             parts = [(a, min(a + plan.slab, plan.grid[0])) for a in range(0, plan.grid[0], plan.slab)]  # a slab each
             results = _run(plan, parts, folder, jobs, scheduler, progress, stack)
             counts = np.concatenate([r["rows"] for r in results])
             if not counts.any():
                 raise InputError(f"the {'windows' if len(plan.windows) > 1 else 'threshold'} "
                                  f"{', '.join(w.words() for w in plan.windows)} holds no voxel of {meta['source']}; "
-                                 "choose another", parameter="preset" if prepare.tissues else "threshold")
+                                 "choose a threshold or window within its values (info tells them)",
+                                 parameter="preset" if prepare.tissues else "threshold")
             written = _write(output, plan, meta, prepare, results, counts)
         return written | {"how": stack.how + " (inflated once)" * bool(spool)}
     finally:
         shutil.rmtree(folder, ignore_errors=True)
+        _STACKS.clear()
 
 
 # ------------------------------------------------------------------ the plan
@@ -136,16 +150,14 @@ def encode_stack(path, output, read=None, prepare=None, *, jobs=1, scheduler=Non
 _STACKS = {}        # the stack each process has open, by source: a worker encodes several parts of one
 
 
-def _open(source, read, spool=None):
-    """The stack at ``source`` in the canonical frame, unread; with ``spool``, its stored slices read from that
-    raw file (:func:`_spool`) instead of its own.
+def _open(source, read, token=None, spool=None):
+    """The stack at ``source`` in the canonical frame, unread, kept for the encode ``token`` names; with
+    ``spool``, its stored slices read from that raw file (:func:`_spool`) instead of its own.
     """
-    key = (source, read, spool)
+    key = (source, read, token, spool)
     if key not in _STACKS:
         _STACKS.clear()
-        stack = io.open_stack(source, format=read.format, raw=read.raw, spacing=read.spacing, series=read.series,
-                              frame=read.frame, level=read.level, orientation=read.orientation,
-                              reorient=read.reorient)
+        stack = stack_of(source, read)
         if spool:
             stored = stack.stack
 
@@ -169,19 +181,16 @@ def _spool(stored, path, progress, slab_bytes=SLAB_VOXELS * 2):
             f.write(np.ascontiguousarray(stored.read_slices(z, min(z + per, stored.shape[0]))).data)
 
 
-def _plan(stack, source, read, prepare, slab_voxels, spool=None):
+def _plan(stack, source, read, prepare, slab_voxels, token, spool=None):
     """The :class:`Plan` of a stack and the meta its object will have (as :func:`encode_volume` makes it)."""
     bin = prepare.bin
+    prep.crop(np.broadcast_to(np.zeros(1, np.int8), stack.shape), prepare.crop)         # checks the crop
     region = tuple(slice(r.start or 0, r.stop if r.stop is not None else n)
                    for r, n in zip(prepare.crop or (slice(None),) * 3, stack.shape, strict=True))
-    prep.crop(np.broadcast_to(np.zeros(1, np.int8), stack.shape), prepare.crop)         # checks the crop
     cropped = tuple(r.stop - r.start for r in region)
     prep.check_bin(bin, cropped)
-    shape = tuple(n // bin for n in cropped)
-    spacing = tuple(float(s) * bin for s in stack.spacing)
-    voxel, out_shape = prep.cubic_grid(shape, spacing, prepare.voxel, prepare.resample)
-    grid = out_shape or shape
-    survey = _survey(stack, region, bin, prepare)
+    shape, spacing, voxel, grid, resampled = _grid(cropped, stack.spacing, prepare)
+    survey = _survey(stack, region, bin, prepare, slab_voxels)
     if prepare.tissues:
         windows = tuple(window for _, window, _ in prepare.tissues)
         threshold = ", ".join(str(w) for w in windows)
@@ -194,12 +203,11 @@ def _plan(stack, source, read, prepare, slab_voxels, spool=None):
                              "to stream the stack", parameter="threshold")
         windows = (found if isinstance(found, prep.Window) else prep.Window(float(found)),)
         threshold = str(found) if isinstance(found, prep.Window) else windows[0].lo
-    plane = max(1, cropped[1] * cropped[2])
-    if stack.how == "across the stored slices":       # each slab reads the whole stack: fewer, thicker slabs
-        slab_voxels *= 4
-    slab = max(1, min(grid[0], slab_voxels // (plane * bin)))
-    plan = Plan(source, read, stack.shape, region, bin, windows, grid, voxel, spacing, out_shape is not None,
-                "the binary mask" if survey["binary"] else "grey values", survey["fill"], slab, spool)
+    slab = _slab_slices(stack, cropped, grid, bin, slab_voxels)
+    step = grid_step(spacing, voxel, prepare.resample)
+    plan = Plan(source, read, token, region, bin, windows, grid, voxel, spacing, resampled,
+                on_input_grid(step, shape, grid), "the binary mask" if survey["binary"] else "grey values",
+                survey["fill"], slab, spool)
     meta = source_meta(stack, source)
     if bin > 1:
         meta["binned"] = bin
@@ -207,7 +215,27 @@ def _plan(stack, source, read, prepare, slab_voxels, spool=None):
     return plan, meta
 
 
-def _survey(stack, region, bin, prepare):
+def _grid(cropped, spacing, prepare):
+    """The cropped input's shape after binning, its spacing, and the object's cubic voxel, grid and whether it
+    is resampled (:func:`voxrender.prep.cubic_grid`).
+    """
+    shape = tuple(n // prepare.bin for n in cropped)
+    spacing = tuple(float(s) * prepare.bin for s in spacing)
+    voxel, out_shape = prep.cubic_grid(shape, spacing, prepare.voxel, prepare.resample)
+    return shape, spacing, voxel, out_shape or shape, out_shape is not None
+
+
+def _slab_slices(stack, cropped, grid, bin, slab_voxels):
+    """Grid slices per slab: about ``slab_voxels`` input voxels or grid voxels (a finer grid holds more), and four
+    times that for a stack read across its stored slices, which each slab reads whole again.
+    """
+    if stack.how == "across the stored slices":
+        slab_voxels *= 4
+    plane = max(cropped[1] * cropped[2] * bin, grid[1] * grid[2], 1)
+    return max(1, min(grid[0], slab_voxels // plane))
+
+
+def _survey(stack, region, bin, prepare, slab_voxels=SLAB_VOXELS):
     """What must be known of the whole stack before its first slab is encoded, as :func:`encode_volume` learns it
     from the whole array: whether it holds only two values (then the normals come from the mask), the lowest value
     (what NaN and inf voxels take for the normals) and Otsu's threshold.  With a threshold given, integers need
@@ -224,8 +252,7 @@ def _survey(stack, region, bin, prepare):
     counts = np.zeros(1 << (8 * stack.dtype.itemsize), np.int64) if counted else None
     offset = -int(np.iinfo(stack.dtype).min) if counted else 0
     if otsu or stack.dtype.kind == "f":
-        for first in range(0, binned_slices, 16):
-            numbers = range(first, min(first + 16, binned_slices))
+        for numbers in _runs(stack, binned_slices, bin, region, slab_voxels):
             values = _binned(stack, region, bin, numbers)
             sample += [plane[::SAMPLE_STEP, ::SAMPLE_STEP] for k, plane in zip(numbers, values, strict=True)
                        if k % SAMPLE_STEP == 0]
@@ -240,23 +267,26 @@ def _survey(stack, region, bin, prepare):
             finite &= all_finite
             if least is not None:
                 lowest = least if lowest is None else min(lowest, least)
-    else:
-        sample = [_binned(stack, region, bin, [k])[0, ::SAMPLE_STEP, ::SAMPLE_STEP]
-                  for k in range(0, binned_slices, SAMPLE_STEP)]
+    else:                                   # every 7th (binned) slice, in one read
+        numbers = range(0, binned_slices, SAMPLE_STEP)
+        sample = [plane[::SAMPLE_STEP, ::SAMPLE_STEP] for plane in _binned(stack, region, bin, numbers)]
     threshold = None
     if otsu:
         if counted:                            # the values held, and how often: Otsu's histogram of them
             held = np.flatnonzero(counts) - offset
             kept = held[held != padding] if padding is not None else held
             low, high = (float(kept.min()), float(kept.max())) if len(kept) else (None, None)
-        prep.check_range(low, high, padding)
-        edges = prep.otsu_bins(low, high)
+        try:
+            prep.check_range(low, high, padding)
+        except InputError as exc:                      # a constant or all-NaN stack: name it
+            raise InputError(f"{stack.meta.get('source', 'the stack')}: {exc.message}", exc.parameter) from None
+        edges = prep.otsu_bins(low, high, np.float32 if bin > 1 else stack.dtype)       # binned values: float32
         if counted:
             histogram = np.histogram(kept, bins=edges, weights=counts[kept + offset])[0].astype(np.int64)
         else:
             histogram = np.zeros(len(edges) - 1, np.int64)
-            for first in range(0, binned_slices, 16):
-                values = _binned(stack, region, bin, range(first, min(first + 16, binned_slices)))
+            for numbers in _runs(stack, binned_slices, bin, region, slab_voxels):
+                values = _binned(stack, region, bin, numbers)
                 for part in prep._kept_parts(values, padding):
                     histogram += np.histogram(part, bins=edges)[0]
         threshold = prep.otsu_of_histogram(histogram, edges)
@@ -266,6 +296,13 @@ def _survey(stack, region, bin, prepare):
         fill = lowest if lowest is not None else 0.0
         sample = np.where(np.isfinite(sample), sample, fill)
     return {"binary": len(np.unique(sample)) <= 2, "fill": fill, "otsu": threshold}
+
+
+def _runs(stack, count, bin, region, slab_voxels):
+    """The binned slices ``0 .. count - 1`` in runs a slab thick (:func:`_slab_slices`), for a pass over them."""
+    cropped = tuple(r.stop - r.start for r in region)
+    per = _slab_slices(stack, cropped, cropped, bin, slab_voxels)
+    return [range(first, min(first + per, count)) for first in range(0, count, per)]
 
 
 class _Sampled:
@@ -281,14 +318,20 @@ class _Sampled:
                            for r, n in zip(region, stack.shape, strict=True))
 
     def __getitem__(self, key):
-        return np.concatenate([_binned(self.stack, self.region, self.bin, [z])
-                               for z in range(*key.indices(self.shape[0]))])
+        return _binned(self.stack, self.region, self.bin, range(*key.indices(self.shape[0])))
 
 
 def _binned(stack, region, bin, numbers):
-    """The cropped, binned slices ``numbers`` (consecutive) of the stack: ``bin`` canonical slices each."""
-    z0 = region[0].start + numbers[0] * bin
-    values = stack.read_slices(z0, z0 + len(numbers) * bin)[:, region[1], region[2]]
+    """The cropped, binned slices ``numbers`` (a range) of the stack: ``bin`` canonical slices each, read in one
+    go when they follow one another.
+    """
+    first = region[0].start + numbers.start * bin
+    if numbers.step == 1:
+        values = stack.read_slices(first, first + len(numbers) * bin)
+    else:
+        values = stack.read_numbers([first + k * numbers.step * bin + j for k in range(len(numbers))
+                                     for j in range(bin)])
+    values = values[:, region[1], region[2]]
     return prep.bin_slices(values, bin) if bin > 1 else values
 
 
@@ -303,13 +346,19 @@ def _run(plan, parts, folder, jobs, scheduler, progress, stack):
     sizes = ByteCounts(int(read * (b - a) / plan.grid[0]) for a, b in parts)
     ticks = iter(progress(sizes, sum(sizes), "encoding") if progress else sizes)
     next(ticks, None)                                         # the bar and its clock start
+    if jobs <= 1 and not scheduler:
+        results = []
+        for part in parts:
+            results.append(encode_part(plan, *part, str(folder)))
+            next(ticks, None)                                 # a part done: the bar moves by its bytes
+        return results
     pool = executor(jobs, scheduler)
     try:
         futures = {pool.submit(encode_part, plan, a, b, str(folder)): n for n, (a, b) in enumerate(parts)}
         results = [None] * len(parts)
-        for future in pool.as_completed(list(futures)):      # in order when run here, as they end on workers
+        for future in pool.as_completed(list(futures)):      # as they end on the workers
             results[futures[future]] = future.result()
-            next(ticks, None)                                 # a part done: the bar moves by its bytes
+            next(ticks, None)
         return results
     finally:
         pool.close()
@@ -319,7 +368,7 @@ def encode_part(plan, first, last, folder):
     """Encode the grid's slices ``first .. last - 1`` of a :class:`Plan`, a slab at a time, into files in
     ``folder``: their runs, labels and normals.  Returns the runs each row has and the files.
     """
-    stack = _open(plan.source, plan.read, plan.spool)
+    stack = _open(plan.source, plan.read, plan.token, plan.spool)
     names = ("starts", "ends", "labels", "normal_index", "normal_packed")
     files = {name: Path(folder) / f"{first:08d}.{name}" for name in names}
     rows, normal_count = [], 0
@@ -357,7 +406,7 @@ def _slab(plan, stack, a, b):
         grey_first, grey_last = max(0, lo - 2), min(nz, hi + 4)
     else:
         grey_first, grey_last = mask_first, mask_last
-    grey = _binned(stack, plan.region, plan.bin, list(range(grey_first, grey_last)))
+    grey = _binned(stack, plan.region, plan.bin, range(grey_first, grey_last))
     if plan.resampled:
         shifted = _Shifted(grey, grey_first, nz)
         planes = prep._resample_slices(shifted, plan.binned_spacing, plan.voxel, ks=range(mask_first, mask_last))
@@ -392,11 +441,12 @@ def _normals(plan, layers, grey, grey_first, mask_first, a, b):
         own = (first - mask_first, last - mask_first)
         if binary:
             found = surface_normals(mask, own=own, offset=mask_first, shape=plan.grid)
-        elif plan.resampled:
+        elif plan.on_grid:                  # the grid's own voxels, beside its mask's
+            on_mask = grey[mask_first - grey_first:mask_first - grey_first + len(mask)]
+            found = surface_normals(mask, on_mask, own=own, offset=mask_first, shape=plan.grid)
+        else:
             sample = grey_sampler(grey, grid_step(plan.binned_spacing, plan.voxel), mask_first, grey_first)
             found = surface_normals(mask, sample, own=own, offset=mask_first, shape=plan.grid)
-        else:
-            found = surface_normals(mask, grey, own=own, offset=mask_first, shape=plan.grid)
         index = np.asarray(found.index)
         yield np.asarray(index, f"<i{index.dtype.itemsize}"), np.asarray(found.packed, "<i2").ravel()
 
@@ -491,20 +541,25 @@ def encode_file(path, output, read=None, prepare=None, *, octree=False, jobs=1, 
     read, prepare = read or ReadOptions(), prepare or PrepOptions()
     max_memory = max_memory or machine_memory() // 2
     started = time.perf_counter()
+    output, how = Path(output), None
     streamed = not is_segments_file(path) and _streams(path, read, prepare, max_memory, jobs > 1 or scheduler)
-    if streamed:
-        encode_stack(path, output, read, prepare, jobs=jobs, scheduler=scheduler, progress=progress)
-        loaded = load_segments(output)
-    else:
-        loaded = load_segments(path, read, prepare, progress)
-    if octree:
-        loaded.octree(max_memory)                       # refused here if its build would pass max_memory
-    if octree or not streamed:
-        with room_for(output):
-            loaded.save(output, octree=octree)
-    encoded = load_segments(output)                      # mapped from the file, as a renderer will take it
-    encoded.seconds = {"encode": time.perf_counter() - started}
-    return encoded, _open(str(path), read).how if streamed else None
+    # the octrees are built from the streamed .vxs, which is kept beside the output only until then
+    objects = output.with_name(f".{output.name}.streamed.vxs") if streamed and octree else output
+    try:
+        if streamed:
+            how = encode_stack(path, objects, read, prepare, jobs=jobs, scheduler=scheduler, progress=progress)["how"]
+        loaded = load_segments(objects) if streamed else load_segments(path, read, prepare, progress)
+        if octree:
+            loaded.octree(max_memory)                       # refused here if its build would pass max_memory
+        if octree or not streamed:
+            with room_for(output):
+                loaded.save(output, octree=octree)
+            loaded = load_segments(output)                  # mapped from the file, as a renderer will take it
+    finally:
+        if objects != output:
+            objects.unlink(missing_ok=True)
+    loaded.seconds = {"encode": time.perf_counter() - started}
+    return loaded, how
 
 
 def _streams(path, read, prepare, max_memory, shared):
@@ -514,14 +569,14 @@ def _streams(path, read, prepare, max_memory, shared):
     stack = stack_of(path, read)
     if stack is None:
         return False
-    too_large = stack.nbytes + math.prod(stack.shape) // max(1, prepare.bin) ** 3 > max_memory
-    if (shared or too_large) and prepare.labels is None and prepare.min_object <= 1:
+    grid = _grid(stack.shape, stack.spacing, prepare)[3] if prepare.labels is None else stack.shape
+    needed = stack.nbytes + math.prod(grid) * (5 if grid != stack.shape else 1)    # the mask, float slices
+    if (shared or needed > max_memory) and prepare.labels is None and prepare.min_object <= 1:
         return True
-    if too_large:
+    if needed > max_memory:
         what = "a label map" if prepare.labels is not None else "removing small pieces (min_object)"
-        raise InputError(f"{path} takes {stack.nbytes / 1e9:.1f} GB in memory, more than the {max_memory / 1e9:.1f} "
-                         f"GB allowed, and {what} needs it whole; bin it, crop it, or allow more memory",
-                         parameter="max_memory")
+        raise InputError(f"{path} takes {needed / 1e9:.1f} GB in memory, more than the {max_memory / 1e9:.1f} GB "
+                         f"allowed, and {what} needs it whole; allow more memory", parameter="max_memory")
     return False
 
 
@@ -537,7 +592,9 @@ HOW = {"stored order": "a slab of slices at a time, in stored order",
 def stack_of(path, read):
     """The stack at ``path`` unread, when its reader reads slabs; else ``None``."""
     format = io.detect_format(path, read.raw) if read.format == "auto" else read.format
-    return _open(str(path), read) if format in _SLABBED else None
+    return io.open_stack(path, format=read.format, raw=read.raw, spacing=read.spacing, series=read.series,
+                         frame=read.frame, level=read.level, orientation=read.orientation,
+                         reorient=read.reorient) if format in _SLABBED else None
 
 
 @contextlib.contextmanager
@@ -552,7 +609,3 @@ def room_for(output):
             raise
         raise InputError(f"no room to write {output}: {exc.strerror}; free some space or write it elsewhere",
                          parameter="output") from None
-
-
-
-

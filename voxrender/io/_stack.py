@@ -104,35 +104,41 @@ class Canonical:
         nz = self.shape[0]
         if not 0 <= z0 <= z1 <= nz:
             raise IndexError(f"slices {z0}:{z1} of {nz}")
+        if self.order[0] != 0:
+            return self.read_numbers(range(z0, z1))
         flipped_z = 0 in self.flips
         lo, hi = (nz - z1, nz - z0) if flipped_z else (z0, z1)      # in the canonical axis before its flip
-        if self.order[0] == 0:
-            part = np.transpose(self.stack.read_slices(lo, hi), self.order)
-        else:
-            part = self._across(lo, hi)
+        part = np.transpose(self.stack.read_slices(lo, hi), self.order)
         for axis in self.flips:
             part = np.flip(part, axis)
         return np.ascontiguousarray(part)
 
-    def _across(self, lo, hi):
-        """Canonical (unflipped) slices ``[lo, hi)`` when they lie across the stored ones: every stored slice
-        read again, a few at a time, keeping the rows or columns of the slab.
+    def read_numbers(self, numbers):
+        """The canonical slices ``numbers`` (any of them, in any order) as one array: a stack read across its
+        stored slices reads each stored slice once for all of them, a few stored slices at a time, keeping the
+        rows or columns asked for; any other reads them slice by slice.
         """
+        numbers = np.asarray(numbers, np.int64)
+        if self.order[0] == 0:
+            return np.concatenate([self.read_slices(z, z + 1) for z in numbers]) if len(numbers) else \
+                np.empty((0,) + self.shape[1:], self.dtype)
+        unflipped = self.shape[0] - 1 - numbers if 0 in self.flips else numbers
         stored = self.stack.shape
         moved = self.order[0]                                       # the stored axis that becomes canonical z
-        out_shape = (hi - lo,) + tuple(stored[a] for a in self.order[1:])
-        out = np.empty(out_shape, self.dtype)
+        out = np.empty((len(numbers),) + tuple(stored[a] for a in self.order[1:]), self.dtype)
         step = max(1, self.slab_bytes // max(1, stored[1] * stored[2] * self.dtype.itemsize))
         take = [slice(None)] * 3
-        take[moved] = slice(lo, hi)
+        take[moved] = unflipped
         for first in range(0, stored[0], step):
             last = min(first + step, stored[0])
             part = self.stack.read_slices(first, last)[tuple(take)]
-            turned = np.transpose(part, self.order)                 # canonical axes; stored z now at its place
             where = [slice(None)] * 3
             where[self.order.index(0)] = slice(first, last)
-            out[tuple(where)] = turned
-        return out
+            out[tuple(where)] = np.transpose(part, self.order)     # canonical axes; stored z now at its place
+        for axis in self.flips:
+            if axis:                                                # z's flip is in the numbers
+                out = np.flip(out, axis)
+        return np.ascontiguousarray(out)
 
 
 def canonical(stack, reorient=True):
