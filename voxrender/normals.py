@@ -278,7 +278,10 @@ def _gradient_of_samples(sample, centres, offsets, kernels):
         part = centres[start:start + chunk]
         stencil = (part[:, None, :] + offsets[None, :, :]).reshape(-1, 3)
         values = np.asarray(sample(stencil), dtype=np.float64).reshape(len(part), len(offsets))
-        gradient[start:start + chunk] = values @ kernels.T
+        found = np.zeros((3, len(part)))
+        for k, weights in enumerate(kernels.T):       # summed in one order, not by BLAS (whose order varies)
+            found += weights[:, None] * values[:, k]
+        gradient[start:start + chunk] = found.T
     return gradient
 
 

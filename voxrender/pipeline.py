@@ -368,9 +368,16 @@ def _grey_normals(volume, mask, info, prepare):
     if len(np.unique(np.asarray(values[::7, ::7, ::7]))) <= 2:
         return surface_normals(mask)
     step = grid_step(volume.spacing, info["voxel"], prepare.resample)
-    if np.allclose(step, 1) and values.shape == mask.shape:      # the grid is the input's: its voxels
+    if on_input_grid(step, values.shape, mask.shape):
         return surface_normals(mask, values)
     return surface_normals(mask, grey_sampler(values, step))
+
+
+def on_input_grid(step, shape, grid):
+    """Whether the object's grid is the input's own (its points ``step`` input voxels apart, about 1, and as many),
+    so that the normals take the input's voxels rather than samples between them.
+    """
+    return bool(np.allclose(step, 1)) and tuple(shape) == tuple(grid)
 
 
 def grid_step(spacing, voxel, resample=True):
@@ -398,6 +405,7 @@ def grey_sampler(values, step, first_point=0, first_value=0):
         at[:, 2] += first_point
         at *= step
         at[:, 2] -= first_value
-        return ndimage.map_coordinates(values, at[:, ::-1].T, order=3, mode="nearest", prefilter=False)
+        return ndimage.map_coordinates(values, at[:, ::-1].T, output=np.float64, order=3, mode="nearest",
+                                       prefilter=False)
 
     return sample
