@@ -219,4 +219,4 @@ def test_info_says_how_a_stack_would_be_streamed(tmp_path):
     for code, words in (("LPS", "in stored order"), ("LPI", "from the far end"), ("PIR", "bounded memory, slower")):
         done = runner.invoke(main, ["info", str(tmp_path / "v.npy"), "--orientation", code, "--threshold", "1000"])
         assert done.exit_code == 0, done.output
-        assert words in [line for line in done.output.splitlines() if line.startswith("streamed:")][0]
+        assert words in [line for line in done.output.splitlines() if line.startswith("if streamed:")][0]

@@ -178,9 +178,10 @@ def _output_paths(options):
 
 
 def _max_memory_option(command):
+    what = ("a stack larger is read a slab at a time (streamed), and an octree build that would need more is "
+            "refused" if command.__name__ == "encode_command" else "an octree build that would need more is refused")
     return click.option("--max-memory", metavar="SIZE",
-                        help="Memory to stay within, e.g. 8G (default: half the machine's): a larger stack is "
-                             "streamed, an octree build that would need more is refused.")(command)
+                        help=f"Memory to stay within, e.g. 8G (default: half the machine's): {what}.")(command)
 
 
 def _check_vxs_options(path, options):
@@ -226,7 +227,8 @@ def _read_options_decorator(command):
         click.option("--series", metavar="UID", help="DICOM SeriesInstanceUID, when a folder holds several."),
         click.option("--frame", type=int, metavar="N", help="The volume to read from a 4-D NIfTI or NRRD (from 0)."),
         click.option("--level", type=click.IntRange(0), metavar="N",
-                     help="The level of a multiscale OME-Zarr (0 the finest; default: the finest)."),
+                     help="The level of a multiscale OME-Zarr, 0 the finest (default: for render, the finest that "
+                          "suits the picture; else the finest)."),
         click.option("--orientation", metavar="CODE",
                      help="Orientation of an input whose header has none, e.g. RAS or LPI: the sides voxel x, y and "
                           "z grow toward."),
@@ -633,7 +635,7 @@ def info_command(input_path, as_json, **options):
         else:
             summary = _describe(input_path, read.read(input_path, progress), _prep_options(options))
         if stack is not None:
-            summary["streamed"] = stream.HOW[stack.how]
+            summary["if_streamed"] = stream.HOW[stack.how]
     if as_json:
         click.echo(json.dumps(summary, indent=2, default=float))
         return

@@ -43,7 +43,7 @@ def memory(text):
     """
     units = {"": 1, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}
     found = re.fullmatch(r"\s*([0-9]*\.?[0-9]+)\s*([kmgt]?)(i?b)?\s*", str(text).lower())
-    if not found or float(found[1]) <= 0:
+    if not found or float(found[1]) * units[found[2]] < 1:
         raise InputError(f"{text!r} must be a size such as 8G, 512M or a number of bytes", parameter="max_memory")
     return int(float(found[1]) * units[found[2]])
 
