@@ -220,3 +220,22 @@ def test_info_says_how_a_stack_would_be_streamed(tmp_path):
         done = runner.invoke(main, ["info", str(tmp_path / "v.npy"), "--orientation", code, "--threshold", "1000"])
         assert done.exit_code == 0, done.output
         assert words in [line for line in done.output.splitlines() if line.startswith("if streamed:")][0]
+
+
+def test_the_progress_bar_moves_as_each_slab_is_encoded(tmp_path, monkeypatch):
+    from voxrender import stream
+
+    np.save(tmp_path / "v.npy", porous())
+    done, seen = [], []
+    encode_part = stream.encode_part
+    monkeypatch.setattr(stream, "encode_part", lambda *args: done.append(1) or encode_part(*args))
+
+    def progress(counts, length, label):
+        assert isinstance(counts, stream.ByteCounts) and sum(counts) == length == porous().nbytes
+        for count in counts:
+            seen.append(len(done))              # the parts encoded when the bar is told of the next one
+            yield count
+
+    encode_stack(tmp_path / "v.npy", tmp_path / "o.vxs", ReadOptions(), PrepOptions(threshold=1000),
+                 progress=progress, slab_voxels=4 * SHAPE[1] * SHAPE[2])
+    assert seen == [0, 1, 2, 3] and len(done) == 4
