@@ -725,7 +725,7 @@ SEGMENTATION_ELEMENTS = {
 # ...and in the items of its sequences (the first item of each).
 ITEM_ELEMENTS = {
     "seg": {"SegmentSequence": {"SegmentNumber": [0, 999, None], "SegmentLabel": ["", None],
-                                "RecommendedDisplayCIELabValue": [[1, 2], [70000, 0, 0], None]},
+                                "RecommendedDisplayCIELabValue": [[1, 2], [65535, 65535, 65535], None]},
             "PerFrameFunctionalGroupsSequence": {"PlanePositionSequence": [None],
                                                  "SegmentIdentificationSequence": [None]}},
     "rtstruct": {"StructureSetROISequence": {"ROINumber": [0, -1, None], "ROIName": ["", None]},
