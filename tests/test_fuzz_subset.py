@@ -11,17 +11,11 @@ from fuzz.run import GOOD, KEPT, replay, run_case, run_seed
 
 SUBSET = range(len(cases.FORMATS))          # case n is of format n modulo their number: one of each
 # Subset cases that misbehave while their fix is in another engineer's hands: {case number: reason}.
-SUBSET_PENDING = {
-    "0-443-ome-zarr__version=0.4_levels=3_constant": "render prints the OME-Zarr level it picked on stderr before the "
-    "error line, without a note: prefix (cli.render_command, the lead's)",
-}
+SUBSET_PENDING = {}
 
 # Kept cases whose fix is in another engineer's hands: {folder name: reason}.  Remove an entry when its fix lands
 # (the strict xfail then fails, to say so).
-PENDING = {
-    "0-443-ome-zarr__version=0.4_levels=3_constant": "render prints the OME-Zarr level it picked on stderr before the "
-    "error line, without a note: prefix (cli.render_command, the lead's)",
-}
+PENDING = {}
 
 
 @pytest.fixture(scope="module")
@@ -41,10 +35,7 @@ def test_subset_case_ends_in_a_picture_or_one_error_line(subset_outcomes, number
 
 
 # Valid seeds that voxrender refuses while the fix is in another engineer's hands: {format: reason}.
-SEED_PENDING = {
-    "0-443-ome-zarr__version=0.4_levels=3_constant": "render prints the OME-Zarr level it picked on stderr before the "
-    "error line, without a note: prefix (cli.render_command, the lead's)",
-}
+SEED_PENDING = {}
 
 
 @pytest.fixture(scope="module")

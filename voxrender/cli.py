@@ -426,7 +426,7 @@ def render_command(input_path, output_path, **options):
     joins = _dicom_study(input_path, options, outputs.dicom)         # a non-DICOM input is refused before reading
     read, note = level_for_picture(input_path, _read_options(options), max(render_options.size))
     if note:
-        click.echo(note, err=True)
+        click.echo(f"note: {note}", err=True)
     study = None
     if render_options.projection:
         from .study import load_study
