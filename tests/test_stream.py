@@ -239,3 +239,10 @@ def test_the_progress_bar_moves_as_each_slab_is_encoded(tmp_path, monkeypatch):
     encode_stack(tmp_path / "v.npy", tmp_path / "o.vxs", ReadOptions(), PrepOptions(threshold=1000),
                  progress=progress, slab_voxels=4 * SHAPE[1] * SHAPE[2])
     assert seen == [0, 1, 2, 3] and len(done) == 4
+
+
+def test_half_floats_and_booleans_stream_as_they_are_read(tmp_path):
+    np.save(tmp_path / "h.npy", porous().astype(np.float16))
+    same_file(tmp_path, "h.npy", ReadOptions(spacing=(1, 1, 1.5)), PrepOptions(threshold=1000))
+    np.save(tmp_path / "b.npy", porous() > 1000)
+    same_file(tmp_path, "b.npy", ReadOptions(), PrepOptions(threshold=1))

@@ -294,6 +294,14 @@ def real_numbers(values, source):
     return values
 
 
+def stack_type(dtype, source):
+    """The type :func:`~voxrender.io.read_volume` gives slices stored as ``dtype`` (booleans as ``uint8``, 16-bit
+    floats as 32-bit ones, in native byte order), for a :class:`~voxrender.io._stack.Stack` of them; other than
+    real numbers is refused, naming ``source``.
+    """
+    return real_numbers(np.empty(0, dtype), source).dtype.newbyteorder("=")
+
+
 def check_frame(path, frame, count=None):
     """The ``frame`` to read of a 4-D file of ``count`` volumes (``None``: a 3-D file, which takes none), checked;
     a 4-D file of one volume gives it without being asked.

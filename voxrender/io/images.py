@@ -8,7 +8,7 @@ import zlib
 import numpy as np
 
 from ..errors import InputError
-from ._shared import Reader, Volume, files_in, fill_stack, first_line, listed, quiet_log, real_numbers, to_grey
+from ._shared import Reader, Volume, files_in, fill_stack, first_line, listed, quiet_log, stack_type, to_grey
 from ._stack import Stack
 
 SUFFIXES = (".png", ".tif", ".tiff", ".bmp", ".jpg", ".jpeg")
@@ -76,14 +76,6 @@ def _read_image(f):
 
 def _meta(files):
     return {"spacing_from": "default (images carry no spacing)", "slices": len(files)}
-
-
-def stack_type(dtype, source):
-    """The type :func:`~voxrender.io.read_volume` gives slices stored as ``dtype`` (booleans as ``uint8``, 16-bit
-    floats as 32-bit ones, in native byte order), for a :class:`~voxrender.io._stack.Stack` of them; other than
-    real numbers is refused, naming ``source``.
-    """
-    return real_numbers(np.empty(0, dtype), source).dtype.newbyteorder("=")
 
 
 def place_slice(out, k, data, name, first):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from ._shared import Reader, Volume, check_holds, first_line, promised_bytes, slices_at
+from ._shared import Reader, Volume, check_holds, first_line, promised_bytes, slices_at, stack_type
 from ._stack import Stack
 
 
@@ -33,17 +33,20 @@ def open_npy(path):
     """The array of a ``.npy`` file as a :class:`~voxrender.io._stack.Stack`: slices read at their offset."""
     volume = read_npy(path, None)                     # checked and mapped, not read
     values = volume.values
-    if values.dtype.kind == "b":
-        values = values.view(np.uint8)
-    dtype, offset = values.dtype, values.offset
+    stored, offset, dtype = values.dtype, values.offset, stack_type(values.dtype, path)
     del volume
     if np.isfortran(values) and min(values.shape) > 1:            # slices are not contiguous: read through a map
-        def read_slices(z0, z1):
-            return np.array(np.load(path, mmap_mode="r", allow_pickle=False)[z0:z1]).view(dtype)
+        def read_stored(z0, z1):
+            return np.array(np.load(path, mmap_mode="r", allow_pickle=False)[z0:z1])
     else:
-        def read_slices(z0, z1):
-            return slices_at(path, offset, values.shape, dtype, z0, z1)
-    return Stack(values.shape, dtype.newbyteorder("="), read_slices, (1.0, 1.0, 1.0), None,
+        def read_stored(z0, z1):
+            return slices_at(path, offset, values.shape, stored, z0, z1)
+
+    def read_slices(z0, z1):                # booleans as 0 and 1, 16-bit floats as 32-bit ones: read_volume's
+        part = read_stored(z0, z1)
+        return part.view(np.uint8) if part.dtype.kind == "b" else part.astype(dtype, copy=False)
+
+    return Stack(values.shape, dtype, read_slices, (1.0, 1.0, 1.0), None,
                  {"spacing_from": "default (.npy carries no spacing)"})
 
 

@@ -7,9 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from ._shared import NOTE_SUFFIXES, Reader, Volume, check_fits, files_in
+from ._shared import NOTE_SUFFIXES, Reader, Volume, check_fits, files_in, stack_type
 from ._stack import Stack
-from .images import stack_type
 
 # Files that sit beside raw slices but are not slices: headers, and notes.
 NOT_SLICES = {".nhdr", ".nrrd", ".mhd", ".hdr"} | NOTE_SUFFIXES

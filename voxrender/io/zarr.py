@@ -29,7 +29,7 @@ import numpy as np
 
 from .. import orient
 from ..errors import InputError
-from ._shared import Reader, Volume, check_fits, check_spacing, first_line, identity_progress
+from ._shared import Reader, Volume, check_fits, check_spacing, first_line, identity_progress, stack_type
 from ._stack import Stack
 
 # The files that make a folder a Zarr node: an array or a group of format 2, any node of format 3.
@@ -99,9 +99,8 @@ def _open(path, level):
         raise InputError(f"{image.where(level)} holds {dtype} values; voxrender needs a numeric array (integers, "
                          "floats or booleans)")
     stored = dtype
-    dtype = np.dtype(np.uint8) if dtype.kind == "b" else np.dtype(np.float32) if dtype == np.float16 else dtype
-    dtype = dtype.newbyteorder("=")
     source = image.where(level)
+    dtype = stack_type(dtype, source)
     if any(int(n) < 1 for n in array.chunks):
         raise InputError(f"the Zarr metadata of {source} is damaged: its chunks are {array.chunks}")
     index = image.index(array.shape, level)
