@@ -17,7 +17,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from . import __version__, batch, colours, compare, io, lines, orient, output, parse, prep, samples, segments, stream
+from . import __version__, batch, colours, compare, io, lines, orient, output, parse, prep, samples, segments
 from ._picture import PROJECTIONS, Outputs, RenderOptions, about, label_table, picture, write_outputs
 from ._render import DEFAULT_METHOD, METHODS, Clip
 from ._render.raycast import CONNECTIVITIES
@@ -44,7 +44,8 @@ def progress(iterable, length=None, label=None):
     """
     if not sys.stderr.isatty():
         return iterable
-    if isinstance(iterable, stream.ByteCounts):
+    stream = sys.modules.get("voxrender.stream")          # imported by the commands that stream, and only then
+    if stream and isinstance(iterable, stream.ByteCounts):
         return _byte_bar(iterable, length, label)
     return _bar(iterable, length, label)
 
@@ -585,6 +586,8 @@ def encode_command(input_path, output_path, as_octree, jobs, scheduler, max_memo
         raise InputError(f"{input_path} is already encoded")
     _check_vxs_options(input_path, options)
     output.check_writable(output_path)
+    from . import stream
+
     loaded, how = stream.encode_file(input_path, output_path, _read_options(options), _prep_options(options),
                               octree=as_octree, jobs=jobs, scheduler=scheduler,
                               max_memory=parse.memory(max_memory) if max_memory else None, progress=progress)
@@ -626,6 +629,8 @@ def info_command(input_path, as_json, **options):
                                  "face_adjacency": "kept"}
     else:
         read = _read_options(options)
+        from . import stream
+
         stack = stream.stack_of(input_path, read)
         if stack is not None and stack.nbytes > machine_memory() // 2:       # described by its header
             summary = {"input": str(input_path), "format": stack.meta.get("format"),

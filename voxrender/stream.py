@@ -566,6 +566,8 @@ def _streams(path, read, prepare, max_memory, shared):
     """Whether to encode the input at ``path`` a slab at a time: its reader reads slabs, and the work is shared
     out or reading it whole would pass ``max_memory`` (the volume, its mask, and the float slices of resampling).
     """
+    if not shared and _disk_bytes(path) * 20 < max_memory:       # surely small (even compressed): no need to open it
+        return False
     stack = stack_of(path, read)
     if stack is None:
         return False
@@ -578,6 +580,14 @@ def _streams(path, read, prepare, max_memory, shared):
         raise InputError(f"{path} takes {needed / 1e9:.1f} GB in memory, more than the {max_memory / 1e9:.1f} GB "
                          f"allowed, and {what} needs it whole; allow more memory", parameter="max_memory")
     return False
+
+
+def _disk_bytes(path):
+    """The bytes the file or the files under the folder ``path`` take on disk."""
+    path = Path(path)
+    if path.is_file():
+        return path.stat().st_size
+    return sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
 
 
 _SLABBED = tuple(name for name, reader in io.READERS.items() if reader.open is not None)
