@@ -154,6 +154,25 @@ def test_normals_at_points_are_the_trilinear_blend_of_the_corners_present(count,
             assert np.isnan(normal).all()
 
 
+@pytest.mark.parametrize("block", [1, 5, 1000])
+def test_normals_of_a_huge_file_are_looked_up_a_block_at_a_time_from_the_file(tmp_path, monkeypatch, block):
+    # read from the file, not through its mapping (whose pages would stay in memory): the same normals
+    mask = np.random.default_rng(11).random((9, 10, 12)) < 0.5
+    encoded = segments.encode(mask)
+    encoded.normals = normals.surface_normals(mask)
+    segments.save(encoded, tmp_path / "o.vxs")
+    field = segments.load(tmp_path / "o.vxs").normals
+    points = np.random.default_rng(12).uniform(-1.5, [12.5, 10.5, 9.5], (40, 3))
+    points[:4] = np.floor(points[:4])
+    expected = encoded.normals.at(points)
+    reads = []
+    monkeypatch.setattr(normals, "RESIDENT_BYTES", 0)
+    monkeypatch.setattr(normals, "FILE_BLOCK", block)
+    monkeypatch.setattr(normals, "read_mapped", lambda *args: reads.append(args) or segments.read_mapped(*args))
+    np.testing.assert_array_equal(field.at(points), expected)
+    assert reads and all(segments.is_mapped(array) for array, *_ in reads)
+
+
 def test_the_surface_band_is_dilation_minus_erosion():
     mask = np.random.default_rng(4).random((9, 10, 11)) < 0.5                 # touches every edge
     cross = ndimage.generate_binary_structure(3, 1)

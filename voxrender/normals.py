@@ -20,6 +20,8 @@ from functools import cached_property
 
 import numpy as np
 
+from .segments import is_mapped, read_mapped
+
 
 def _stencil(radius, smooth, derive):
     """Offsets ``(n, 3)`` (dx, dy, dz) and the gradient kernels ``(3, n)`` of separable 1-D weights."""
@@ -36,6 +38,10 @@ SOBEL_1D = np.array([1.0, 2.0, 1.0]), np.array([-1.0, 0.0, 1.0])          # (smo
 GAUSSIAN_1D = np.exp(-_t ** 2 / 2), _t * np.exp(-_t ** 2 / 2)
 SOBEL = _stencil(1, *SOBEL_1D)
 GAUSSIAN = _stencil(2, *GAUSSIAN_1D)
+# The look-ups of SurfaceNormals.at read a memory-mapped index or normals larger than this a block of FILE_BLOCK
+# values at a time from the file: through the mapping, the pages they touch would stay in memory (gigabytes).
+RESIDENT_BYTES = 1 << 28
+FILE_BLOCK = 1 << 22
 
 
 def octahedral_encode(normals):
@@ -198,6 +204,9 @@ class SurfaceNormals:
             # looked up in the bitmap, made once for every later picture
             slot, there = self._place(linear)
             after, there_next = slot + there, self._place(linear + 1)[1]
+        elif index.nbytes > RESIDENT_BYTES and is_mapped(index):    # a huge file's: read a block at a time
+            slot, there, there_next = _search_in_blocks(index, linear)
+            after = slot + there
         else:                                       # a small picture, or object in a vast volume: a search
             slot = np.minimum(np.searchsorted(index, linear.astype(index.dtype, copy=False)), top)
             there = index[slot] == linear           # at x = -1 that is the last voxel of the row before
@@ -210,11 +219,60 @@ class SurfaceNormals:
         if many:                                                  # decoded once, for every later picture
             corners = np.take(self.unit, slots, axis=1)         # (take: a tenth of the time of [:, slots])
         else:                                                     # a small picture: decode just its corners
-            corners = _decode(np.take(_words(self.packed), slots))
+            words = _words(self.packed)
+            big = words.nbytes > RESIDENT_BYTES and is_mapped(words)
+            corners = _decode(_take_in_blocks(words, slots) if big else np.take(words, slots))
         total = np.stack([np.einsum("cn,cn->n", weights, c.reshape(weights.shape)) for c in corners], axis=1)
         length = np.sqrt(np.einsum("nk,nk->n", total, total))[:, None]
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.where(length > 1e-12, total / length, np.nan).astype(np.float32)
+
+
+def _search_in_blocks(index, linear, block=None):
+    """:meth:`SurfaceNormals.at`'s search of voxel numbers ``linear`` in the sorted, memory-mapped ``index``,
+    reading from its file only the blocks they fall in (:func:`~voxrender.segments.read_mapped`), so that its
+    pages do not stay in memory: each number's place (``np.searchsorted``'s), whether it is there, and whether
+    the number after it is at the place after.
+    """
+    block = block or FILE_BLOCK
+    wanted = linear.ravel()
+    order = np.argsort(wanted, kind="stable")
+    wanted = wanted[order]
+    firsts = index[::block]                                 # the first of each block: a page each
+    blocks = np.maximum(np.searchsorted(firsts, wanted, "right") - 1, 0)
+    bounds = np.searchsorted(blocks, np.arange(len(firsts) + 1))
+    slot, there, there_next = (np.empty(len(wanted), np.int64), np.empty(len(wanted), bool),
+                               np.empty(len(wanted), bool))
+    for k in np.flatnonzero(bounds[1:] > bounds[:-1]):          # a Python loop over blocks, not numbers
+        lo, hi = bounds[k], bounds[k + 1]
+        values = read_mapped(index, k * block, (k + 1) * block + 2)     # and the two after, for the neighbours
+        own = min(block, len(index) - k * block)
+        part = wanted[lo:hi]
+        local = np.searchsorted(values[:own], part)         # past the block: before the next block's first
+        found = values[np.minimum(local, len(values) - 1)] == part
+        found &= local < len(values)
+        after = local + found
+        slot[lo:hi] = k * block + local
+        there[lo:hi] = found
+        there_next[lo:hi] = (after < len(values)) & (values[np.minimum(after, len(values) - 1)] == part + 1)
+    placed = np.empty_like(order)
+    placed[order] = np.arange(len(order))
+    return tuple(a[placed].reshape(linear.shape) for a in (slot, there, there_next))
+
+
+def _take_in_blocks(array, positions, block=None):
+    """``np.take(array, positions)`` from a memory-mapped ``array``, reading from its file only the blocks the
+    positions fall in (as :func:`_search_in_blocks`).
+    """
+    block = block or FILE_BLOCK
+    order = np.argsort(positions, kind="stable")
+    wanted = positions[order]
+    bounds = np.searchsorted(wanted, np.arange(0, len(array) + block, block))
+    out = np.empty(len(positions), array.dtype)
+    for k in np.flatnonzero(bounds[1:] > bounds[:-1]):
+        lo, hi = bounds[k], bounds[k + 1]
+        out[order[lo:hi]] = read_mapped(array, k * block, (k + 1) * block)[wanted[lo:hi] - k * block]
+    return out
 
 
 def surface_normals(mask, sample=None, source=None, *, own=None, offset=0, shape=None):

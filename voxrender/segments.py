@@ -366,7 +366,6 @@ def read_sections(path):
             if dtype.kind not in "biuf" or begin < 0 or count < 0 or data_start + begin + count * dtype.itemsize > size:
                 raise _damaged(path, f"its array {name} ({count} of {dtype}) is not within the file")
             arrays[name] = raw[data_start + begin:data_start + begin + count * dtype.itemsize].view(dtype)
-        header["data_start"] = data_start             # where the arrays' offsets count from, for checks in blocks
     except InputError:
         raise
     except (OSError, ValueError, KeyError, IndexError, TypeError, AttributeError) as exc:
@@ -379,28 +378,40 @@ def _damaged(path, what):
     return InputError(f"{path} is a damaged {kind} file ({what}); encode it again")
 
 
-def _blocks(path, header, name, array, overlap=0, count=1 << 24):
-    """The values of a file's array a block at a time, read from the file and not through its mapping (whose
-    pages, once touched, would stay resident: a large object's normals are gigabytes), each block with the first
-    ``overlap`` values of the next.
+def _blocks(array, overlap=0, count=1 << 24):
+    """The values of an array a block at a time (:func:`read_mapped`: a file's are read from it, not through its
+    mapping), each block with the first ``overlap`` values of the next.
     """
-    start = header.get("data_start")
-    if start is None or not array.size:           # not from a file (or empty): the array itself
+    if not is_mapped(array) or not array.size:
         yield np.asarray(array)
         return
-    start += int(header["arrays"][name]["offset"])
     for first in range(0, array.size, count):
-        yield np.fromfile(path, array.dtype, count=min(count + overlap, array.size - first),
-                          offset=start + first * array.dtype.itemsize)
+        yield read_mapped(array, first, first + count + overlap)
 
 
 def is_mapped(array):
     """Whether ``array`` is a view of a memory-mapped file."""
-    while array is not None:
-        if isinstance(array, np.memmap):
-            return True
+    return _mapping(array) is not None
+
+
+def _mapping(array):
+    while array is not None and not isinstance(array, np.memmap):
         array = getattr(array, "base", None)
-    return False
+    return array
+
+
+def read_mapped(array, first, last):
+    """``array[first:last]`` (of a one-dimensional ``array``) as a plain array.  When ``array`` is a view of a
+    memory-mapped file, the values are read from the file, so that its pages, unlike those of the mapping once
+    touched, do not stay in the process's memory (a large object's normals are gigabytes).
+    """
+    first, last = max(first, 0), min(last, len(array))
+    mapping = _mapping(array)
+    if mapping is None or mapping.filename is None or not array.flags.c_contiguous:
+        return np.array(array[first:last])
+    start = mapping.offset + array.__array_interface__["data"][0] - mapping.__array_interface__["data"][0]
+    return np.fromfile(mapping.filename, array.dtype, count=max(last - first, 0),
+                       offset=start + first * array.itemsize)
 
 
 def load(path):
@@ -437,7 +448,7 @@ def from_sections(header, arrays, path):
     if (offsets.size != shape[0] * shape[1] + 1 or offsets[0] != 0 or starts.size != offsets[-1]
             or ends.size != starts.size or np.any(offsets[1:] < offsets[:-1])):
         raise _damaged(path, "index and runs disagree")
-    for first, last in zip(_blocks(path, header, "starts", starts), _blocks(path, header, "ends", ends), strict=True):
+    for first, last in zip(_blocks(starts), _blocks(ends), strict=True):
         if first.size and (first.min() < 0 or last.max() >= shape[2] or np.any(first > last)):
             raise _damaged(path, "runs leave their grid")
     normals = None
@@ -445,7 +456,7 @@ def from_sections(header, arrays, path):
         from .normals import SurfaceNormals
 
         index, packed = arrays["normal_index"], arrays.get("normal_packed", np.zeros(1, np.int16))
-        rising = all(np.all(block[1:] > block[:-1]) for block in _blocks(path, header, "normal_index", index, 1))
+        rising = all(np.all(block[1:] > block[:-1]) for block in _blocks(index, 1))
         if packed.size != 2 * index.size or index.size and (index[0] < 0 or index[-1] >= math.prod(shape)
                                                             or not rising):
             raise _damaged(path, "surface normals and their voxels disagree")
