@@ -1,6 +1,7 @@
 """The benchmark's pieces run on small data (its timings are not asserted: machines are noisy)."""
 
 import numpy as np
+import pytest
 
 from benchmarks import bench
 from voxrender import segments
@@ -78,3 +79,78 @@ def test_projection_section_runs_small():
     assert "| anterior |" in text and result["grid_xyz"] == [20, 16, 12]
     alone = bench.bench_projection(values, 1, size=16)          # without VTK: no peer columns
     assert not any("vtk_s" in row for row in alone["rows"]) and "vtk" not in "".join(bench._projection_table(alone))
+
+
+def _tiny_sources():
+    """Two small CT-like volumes in place of vhf_head and headsq: a bright ball in air."""
+    z, y, x = np.mgrid[:30, :36, :40]
+    big = np.where((z - 15) ** 2 + (y - 18) ** 2 + (x - 20) ** 2 < 13 ** 2, 700, -1000).astype(np.int16)
+    z, y, x = np.mgrid[:20, :16, :16]
+    small = np.where((z - 10) ** 2 + (y - 8) ** 2 + (x - 8) ** 2 < 7 ** 2, 1500, 0).astype(np.int16)
+    return {"vhf_head": (big, (1.0, 1.0, 1.0), 300.0), "headsq": (small, (3.2, 3.2, 1.5), 1150.0)}
+
+
+def test_write_studies_gives_distinct_studies_voxrender_reads(tmp_path):
+    from benchmarks import studies
+    from voxrender import io
+
+    cut_from = _tiny_sources()
+    written = studies.write_studies(tmp_path, count=8, cut_from=cut_from)
+    assert [s["format"] for s in written] == ["dicom", "nifti"] * 4
+    assert [s["source"] for s in written].count("headsq") == 2
+    assert len({(tuple(s["shape"]), tuple(s["flips"]), tuple(s["origin"])) for s in written}) == 8
+    assert len({tuple(s["origin"]) for s in written}) == 8
+    for study in written:
+        volume = io.read_volume(study["path"])
+        expected = studies.cut(cut_from[study["source"]][0], study)
+        assert volume.shape == tuple(study["shape"]) == expected.shape
+        assert np.array_equal(np.asarray(volume.values), expected)            # LPS axes: read as written
+        assert np.allclose(volume.spacing, study["spacing"])
+    again = studies.write_studies(tmp_path, count=8, cut_from={})          # the cache: nothing is cut again
+    assert again == written
+
+
+def test_vtk_script_renders_the_studies(tmp_path):
+    """The VTK script draws each study's views, framed on the object (skipped without VTK)."""
+    from benchmarks import studies
+
+    if not studies.vtk_available():
+        pytest.skip("vtk is not installed (pip install -e '.[peers]')")
+    written = studies.write_studies(tmp_path / "studies", count=2, cut_from=_tiny_sources())
+    wall, seconds = studies.run_vtk(written, tmp_path / "vtk", size=48)
+    assert wall > 0 and set(seconds) >= {"import", "read", "render", "write", "total"}
+    for study in written:       # framed: the ball fills much of the picture, never all (VTK leaves cut faces black)
+        drawn = [studies.drawn_pixels(tmp_path / "vtk" / study["name"] / f"{view}.png") for view in studies.VIEWS]
+        assert max(drawn) > 0.2 * 48 * 48 and max(drawn) < 48 * 48
+
+
+def test_compare_table_on_fake_timings():
+    from benchmarks import compare
+
+    seconds = {"whole command": {"working": [1.0, 3.0, 2.0], "ref": [4.0, 4.0, 5.0]},
+               "encode --octree head x4": {"working": [2.0], "ref": []},
+               "  ftb render (its --stats-json)": {"working": [0.5], "ref": [0.25]}}
+    failed = {"encode --octree head x4": {"ref": "exit 2: error: no such option: --octree"}}
+    lines = compare.table(seconds, failed, ("working (abc)", "ref (def)"))
+    assert lines[0] == "| figure | working (abc) s | ref (def) s | working/ref |"
+    assert "| whole command | 2.000 | 4.000 | 0.50 |" in lines
+    assert "| encode --octree head x4 | 2.000 | failed (exit 2: error: no such option: --octree) | - |" in lines
+    assert "|   ftb render (its --stats-json) | 0.500 | 0.250 | 2.00 |" in lines
+
+
+def test_studies_markdown_on_fake_results():
+    from benchmarks import studies
+
+    rows = {"jobs 1": {"seconds": 20.0, "per_minute": 72.0}, "jobs 2": {"seconds": 10.0, "per_minute": 144.0},
+            "vtk": {"seconds": 40.0, "per_minute": 36.0}}
+    results = {"commit": "abc", "load": 1.0,
+               "studies": {"studies": 24, "views": 4, "size": 512, "repeat": 3, "rows": rows,
+                           "formats": {"dicom": 12, "nifti": 12}, "sources": {"vhf_head": 18, "headsq": 6},
+                           "pixels": {"voxrender": [10, 20], "vtk": [11, 19]}},
+               "whole_command": {"command": "voxrender render vhf_head", "repeat": 3, "wall": 0.8,
+                                 "stages": {"load": 0.3, "prepare": 0.2}, "vtk_wall": 2.0,
+                                 "vtk_stages": {"import": 0.6, "total": 1.9}, "pixels": {"voxrender": 5, "vtk": 6}}}
+    text = "\n".join(studies.markdown_lines(results))
+    assert "voxrender `--jobs 2` / VTK: 4.00x (target >= 3x: met)" in text
+    assert "144 studies per minute (target >= 120: met)" in text
+    assert "0.80 s wall (target <= 0.5 s: missed)" in text and "voxrender / VTK wall 0.40" in text
