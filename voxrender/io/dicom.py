@@ -11,6 +11,7 @@ import contextlib
 import io
 import os
 import struct
+import sys
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -45,6 +46,12 @@ NOT_IMAGES = ("SR", "PR", "KO", "RTPLAN", "RTRECORD", "REG", "DOC")
 HEADER_KEYWORDS = ("Rows", "Columns", "Modality", "SOPClassUID", "SeriesInstanceUID", "SeriesDescription",
                    "FrameOfReferenceUID", "NumberOfFrames", "ImagePositionPatient", "ImageOrientationPatient",
                    "InstanceNumber", "PixelSpacing", "SliceThickness", "SpacingBetweenSlices")
+# The transfer syntaxes whose pixel data this reader takes straight from the file (uncompressed, little endian),
+# with whether their elements are implicit VR; any other is decoded by pydicom.
+PLAIN_SYNTAXES = {"1.2.840.10008.1.2": True,            # Implicit VR Little Endian
+                  "1.2.840.10008.1.2.1": False}         # Explicit VR Little Endian
+HEADER_BYTES = 1 << 14      # a slice's header is read in one call of this many bytes: most end (at their pixels) in it
+READ_AHEAD = 4              # compressed slices decoded ahead of the one placed, on the thread pool
 
 
 def damaged_file_errors():
@@ -100,15 +107,19 @@ def _is_dicom(path):
 
 def read_dicom(folder, progress, series=None):
     """Read the DICOM series in ``folder`` (the one whose SeriesInstanceUID is ``series``, when it holds several)."""
-    chosen, aside = _series_files(folder, progress, series)
+    chosen, aside, plain = _series_files(folder, progress, series)
     if _multiframe(chosen, folder):
         with _header_values(folder):
             volume = _read_multiframe(chosen[0][0])
         volume.meta.update(_beside(aside))
         return volume
     items, spacing, meta, direction = _slices_placed(folder, chosen, aside)
-    values = fill_stack(items, lambda item: (_slice_values(item[0]), item[0].name), "reading DICOM slices", progress,
-                        folder)
+    at = [plain.get(f) for f, _ in items]
+    if all(a is not None for a in at) and len({a.dtype for a in at}) == 1:
+        values = _read_plain_slices(items, at, progress, folder)
+    else:
+        with _decoding_pool(items, plain) as pool:
+            values = fill_stack(items, _slices_decoded(items, plain, pool), "reading DICOM slices", progress, folder)
     return Volume(values, spacing, meta, direction)
 
 
@@ -120,7 +131,7 @@ def open_dicom(folder, series=None):
     rescale is fractional (``float32``) or takes every value the stored bits can hold into ``int16``; otherwise the
     pixels of the slices whose headers do not tell are read once now, one file at a time, for their range.
     """
-    chosen, aside = _series_files(folder, identity_progress, series)
+    chosen, aside, plain = _series_files(folder, identity_progress, series)
     if _multiframe(chosen, folder):
         with _header_values(folder):
             stack = _open_multiframe(chosen[0][0])
@@ -128,26 +139,28 @@ def open_dicom(folder, series=None):
         return stack
     items, spacing, meta, direction = _slices_placed(folder, chosen, aside)
     told = [_told_type(ds) for _, ds in items]
-    found = {_slice_values(f).dtype for (f, _), dtype in zip(items, told, strict=True) if dtype is None}
+    found = {_values(f, ds, plain.get(f)).dtype for (f, ds), dtype in zip(items, told, strict=True) if dtype is None}
     dtype = np.result_type(*({dtype for dtype in told if dtype is not None} | found))   # as fill_stack widens
     shape = (len(items), int(items[0][1].Rows), int(items[0][1].Columns))
 
     def read_slices(z0, z1):
         out = np.empty((z1 - z0, *shape[1:]), dtype)
-        for k, (f, _) in enumerate(items[z0:z1]):
-            place_slice(out, k, _slice_values(f), f.name, items[0][0].name)
+        buffer = None
+        for k, (f, ds) in enumerate(items[z0:z1]):
+            at = plain.get(f)
+            if at is not None and (buffer is None or buffer.dtype != at.dtype):
+                buffer = np.empty(shape[1:], at.dtype)      # one slice's stored values, read again and again
+            place_slice(out, k, _values(f, ds, at, buffer), f.name, items[0][0].name)
         return out
 
     return Stack(shape, dtype, read_slices, spacing, direction, meta, sum(f.stat().st_size for f, _ in items))
 
 
 def _series_files(folder, progress, series):
-    """The files of the chosen series in ``folder`` with their headers, ``[(path, header), ...]``, and the files
-    set aside as not slices (segmentations, reports ...), ``[(path, kind), ...]``.
+    """The files of the chosen series in ``folder`` with their headers, ``[(path, header), ...]``; the files set
+    aside as not slices (segmentations, reports ...), ``[(path, kind), ...]``; and where the slices that store
+    their pixels plainly hold them, ``{path: _Plain}`` (see :func:`_plain_pixels`).
     """
-    import pydicom
-    from pydicom.errors import InvalidDicomError
-
     if folder.is_file():
         from .rtstruct import is_rtstruct
 
@@ -159,15 +172,10 @@ def _series_files(folder, progress, series):
     if not files:
         raise InputError(f"{folder} holds no DICOM files")
     damaged = damaged_file_errors()
-    headers, aside = [], []
+    headers, aside, plain = [], [], {}
     for f in progress(files, len(files), "reading DICOM headers"):
         try:
-            try:
-                with _BoundedFile(f) as stream:
-                    ds = pydicom.dcmread(stream, stop_before_pixels=True)
-            except InvalidDicomError:               # no file meta header: older files, read as a bare data set
-                with _BoundedFile(f) as stream:
-                    ds = pydicom.dcmread(stream, stop_before_pixels=True, force=True)
+            ds, position, element = _read_header(f)
             for keyword in HEADER_KEYWORDS:       # pydicom decodes a value when first asked: a damaged one fails here
                 ds.get(keyword)
         except damaged as exc:
@@ -182,6 +190,9 @@ def _series_files(folder, progress, series):
             raise InputError(f"DICOM file {f} holds no image (no {', '.join(missing)}; modality or class: {kind}); "
                              "give a folder of image slices")
         headers.append((f, ds))
+        at = _plain_pixels(ds, position, element)
+        if at is not None:
+            plain[f] = at
     if not headers:
         found = ", ".join(f"{kind} {f.name}" for f, kind in aside[:3]) + (" ..." if len(aside) > 3 else "")
         raise InputError(f"{folder} holds no image slices, only {found}; a segmentation is shown on its image: "
@@ -192,11 +203,217 @@ def _series_files(folder, progress, series):
     if series is not None:
         if series not in groups:
             raise InputError(f"no series {series} in {folder}; it holds {_list_series(groups)}", parameter="series")
-        return groups[series], aside
+        return groups[series], aside, plain
     if len(groups) > 1:
         raise InputError(f"{folder} holds {len(groups)} DICOM series; choose one by its UID: "
                          f"{_list_series(groups)}", parameter="series")
-    return next(iter(groups.values())), aside
+    return next(iter(groups.values())), aside, plain
+
+
+def _read_header(path):
+    """The header of the DICOM file ``path`` (pydicom's data set of its elements before its pixel data), the
+    position in the file where reading stopped (at its pixel data element, if it has one) and the twelve bytes
+    there: ``(ds, position, element)``.
+
+    The file's first :data:`HEADER_BYTES` are read in one call and parsed in memory: pydicom reads a stream a few
+    bytes at a time, each read a call of :class:`_BoundedFile`.  A header that does not end within them at a pixel
+    data element (a long one; a damaged, deflated or odd file) is parsed again from the file, as every header once
+    was, for its data set or its error.
+    """
+    with _BoundedFile(path) as stream:
+        start = stream.read(HEADER_BYTES)
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                buffer = io.BytesIO(start)
+                ds = _parse_header(buffer)
+            position = buffer.tell()
+            element = start[position:position + 12]
+            if len(element) == 12 and struct.unpack_from("<HH", element) in PIXEL_TAGS:
+                for warning in caught:                    # said once, as the parse of the file would say it
+                    warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
+                ds.buffer = None                          # pydicom keeps what it read from: let it go
+                return ds, position, element
+        except Exception:                                 # any: the parse of the file below says what it is
+            pass
+        stream.seek(0)
+        ds = _parse_header(stream)
+        position = stream.tell()
+        return ds, position, stream.read(12)
+
+
+def _parse_header(stream):
+    """The data set of the elements of ``stream`` before its pixel data (pydicom); a file without a file meta
+    header (an older one) is read as a bare data set.
+    """
+    import pydicom
+    from pydicom.errors import InvalidDicomError
+
+    try:
+        return pydicom.dcmread(stream, stop_before_pixels=True)
+    except InvalidDicomError:
+        stream.seek(0)
+        return pydicom.dcmread(stream, stop_before_pixels=True, force=True)
+
+
+@dataclass(frozen=True)
+class _Plain:
+    """Where and how a slice file stores its pixels plainly: uncompressed, little endian, one grey frame."""
+
+    offset: int             # of the pixel data's first byte in the file
+    dtype: np.dtype         # of the stored values, as pydicom's pixel_array gives them
+    shift: int              # BitsAllocated - BitsStored: the unused high bits pydicom clears or fills with the sign
+
+
+PIXEL_TAGS = {(0x7FE0, 0x0010), (0x7FE0, 0x0009), (0x7FE0, 0x0008)}     # where pydicom stops before the pixels
+
+
+def _plain_pixels(ds, position, element):
+    """Where the slice whose header is ``ds`` holds its pixels, read at ``position`` with its first bytes there,
+    ``element``, when it stores them plainly (:class:`_Plain`), its header valid as pydicom's pixel_array checks
+    it; else ``None``: pydicom decodes them.
+
+    Plainly means an uncompressed little endian transfer syntax read as its file meta header says (on a little
+    endian machine); one grey sample of 8, 16 or 32 bits (BitsStored 1 to BitsAllocated, PixelRepresentation 0
+    or 1, MONOCHROME1 or 2) in one frame; and a (7FE0,0010) Pixel Data element whose length is the pixels' (or one
+    byte more, an odd length's padding).
+    Anything else, odd or damaged, keeps pydicom's reading and its messages.
+    """
+    try:
+        syntax = str(ds.file_meta.TransferSyntaxUID)
+        implicit = PLAIN_SYNTAXES.get(syntax)
+        if implicit is None or tuple(ds.original_encoding) != (implicit, True) or sys.byteorder != "little":
+            return None
+        if int(ds.SamplesPerPixel) != 1 or str(ds.PhotometricInterpretation) not in ("MONOCHROME1", "MONOCHROME2") \
+                or ("NumberOfFrames" in ds and ds.NumberOfFrames != 1):
+            return None
+        allocated, stored, signed = int(ds.BitsAllocated), int(ds.BitsStored), int(ds.PixelRepresentation)
+        rows, columns = int(ds.Rows), int(ds.Columns)
+    except (AttributeError, KeyError, ValueError, TypeError, NotImplementedError, OverflowError):
+        return None
+    if allocated not in (8, 16, 32) or not 1 <= stored <= allocated or signed not in (0, 1) or \
+            not (0 < rows < 1 << 16 and 0 < columns < 1 << 16):
+        return None
+    size = 8 if implicit else 12            # tag, length; or tag, VR, two reserved bytes, length
+    if len(element) < size or struct.unpack_from("<HH", element) != (0x7FE0, 0x0010) or \
+            (not implicit and element[4:6] not in (b"OB", b"OW")):
+        return None
+    length = struct.unpack_from("<L", element, size - 4)[0]
+    expected = rows * columns * allocated // 8
+    if length not in (expected, expected + expected % 2):
+        return None
+    return _Plain(position + size, np.dtype(f"{'i' if signed else 'u'}{allocated // 8}"), allocated - stored)
+
+
+def _read_plain(path, at, out):
+    """The stored values of the slice file ``path`` whose pixels ``at`` places (:class:`_Plain`), read straight
+    from the file into ``out`` (one slice, C-ordered), as pydicom's pixel_array gives them; a file cut short within
+    them is a damaged file.
+    """
+    view = out.reshape(-1).view(np.uint8)
+    try:
+        with open(path, "rb", buffering=0) as f:
+            f.seek(at.offset)
+            got = 0
+            while got < view.size:
+                count = f.readinto(view[got:])
+                if not count:
+                    break
+                got += count
+    except OSError as exc:
+        raise InputError(f"cannot read the pixels of DICOM file {path}: {first_line(exc)}") from None
+    if got < view.size:
+        raise InputError(f"cannot read the pixels of DICOM file {path}: it holds {got} of the {view.size} bytes of "
+                         "its pixel data; the file is truncated")
+    if at.shift:                    # as pydicom clears the unused bits: shifts in the stored type (signed: its sign)
+        np.left_shift(out, at.shift, out=out)
+        np.right_shift(out, at.shift, out=out)
+    return out
+
+
+def _read_plain_slices(items, at, progress, folder):
+    """The rescaled values of the slices ``items`` (all stored plainly, in one type, where ``at`` says), as
+    :func:`~voxrender.io._shared.fill_stack` gives them: each slice is read straight into the volume and rescaled
+    there while its type allows (the stored values' width), else into a volume of the type they need.
+    """
+    first = items[0][1]
+    shape = (len(items), int(first.Rows), int(first.Columns))
+    check_fits(shape, at[0].dtype, folder)
+    stored = np.empty(shape, at[0].dtype)
+    volume = None
+    for z, ((f, ds), a) in enumerate(zip(progress(items, len(items), "reading DICOM slices"), at, strict=True)):
+        data = _rescale(_read_plain(f, a, stored[z]), ds, reuse=True)
+        in_place = np.may_share_memory(data, stored)
+        if volume is None:
+            if in_place:
+                volume = stored.view(data.dtype)
+            else:
+                check_fits(shape, data.dtype, folder)
+                volume = np.empty(shape, data.dtype)
+        elif not np.can_cast(data.dtype, volume.dtype, "safe"):    # a later slice needs a wider type: widen once
+            wider = np.result_type(volume.dtype, data.dtype)
+            check_fits(shape, wider, folder)
+            widened = np.empty(shape, wider)
+            widened[:z] = volume[:z]
+            volume = widened
+        if not (in_place and np.may_share_memory(volume, stored)):
+            volume[z] = data
+    return volume
+
+
+@contextlib.contextmanager
+def _decoding_pool(items, plain):
+    """A thread pool to decode the slices ``items`` that ``plain`` does not place (compressed ones), when there are
+    several: pydicom's decoders (openjpeg, libjpeg, JPEG-LS) decode without the interpreter's lock.  ``None`` when
+    there is nothing to decode, or one core.
+    """
+    count = sum(f not in plain for f, _ in items)
+    workers = min(os.cpu_count() or 1, 4)
+    if count < 2 or workers < 2:
+        yield None
+        return
+    from concurrent.futures import ThreadPoolExecutor
+
+    pool = ThreadPoolExecutor(workers, thread_name_prefix="voxrender-dicom")
+    try:
+        yield pool
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _slices_decoded(items, plain, pool=None):
+    """:func:`~voxrender.io._shared.fill_stack`'s ``read_slice`` for the slices ``items`` (asked in their order):
+    each slice's values and name, read plainly when ``plain`` places its pixels, else decoded by pydicom; on
+    ``pool`` (a thread pool) when given, :data:`READ_AHEAD` slices ahead of the one asked for.
+    """
+    decoded, ahead = {}, iter(range(len(items)))
+    asked = iter(range(len(items)))
+
+    def read_slice(item):
+        z = next(asked)
+        f, ds = item
+        if pool is None or f in plain:
+            return _values(f, ds, plain.get(f)), f.name
+        for k in ahead:                             # decode the next ones while this one is placed
+            if items[k][0] not in plain:
+                decoded[k] = pool.submit(_slice_values, items[k][0])
+            if k >= z + READ_AHEAD:
+                break
+        return decoded.pop(z).result(), f.name
+
+    return read_slice
+
+
+def _values(path, ds, at, buffer=None):
+    """The rescaled values of the slice file ``path`` whose header is ``ds``: read plainly where ``at`` says (into
+    ``buffer``, one slice of the stored type, when given: the values may be computed in it), else decoded by
+    pydicom (:func:`_slice_values`).
+    """
+    if at is None:
+        return _slice_values(path)
+    if buffer is None:
+        buffer = np.empty((int(ds.Rows), int(ds.Columns)), at.dtype)
+    return _rescale(_read_plain(path, at, buffer), ds, reuse=True)
 
 
 @contextlib.contextmanager
@@ -253,7 +470,7 @@ def _slices_placed(folder, chosen, aside):
 
 
 def _slice_values(path):
-    """The rescaled values of one slice file (colour becomes grey)."""
+    """The rescaled values of one slice file (colour becomes grey), decoded by pydicom."""
     ds, data = _dicom_pixels(path)
     return _rescale(to_grey(data, path.name), ds)
 
@@ -339,10 +556,14 @@ def _compression(ds, damaged):
         return ""
 
 
-def _rescale(data, ds, slope=None, intercept=None):
+def _rescale(data, ds, slope=None, intercept=None, reuse=False):
     """Stored values to units (Hounsfield for CT) by RescaleSlope and RescaleIntercept: integers (int16 when they
     fit) for whole numbers, else float32 (see :func:`_rescaled_type`); a slope or intercept that is not finite, or
     takes the values beyond float32, is a damaged file.
+
+    With ``reuse``, integers are computed in ``data`` itself when their type is as wide as the stored one (else in
+    one copy), in its width, wrapping: the low bits of the exact values, so the same values as the computation in
+    int32 that keeps ``data``.
     """
     slope, intercept = _slope_intercept(ds, slope, intercept)
     low, high = (float(data.min()), float(data.max())) if data.size else (0.0, 0.0)
@@ -353,7 +574,15 @@ def _rescale(data, ds, slope=None, intercept=None):
     dtype = _rescaled_type(ends if data.size else [np.inf], slope, intercept, data.dtype.kind)
     if dtype == np.float32:
         return (data * np.float32(slope) + np.float32(intercept)).astype(np.float32)
-    return (data.astype(np.int32) * int(slope) + int(intercept)).astype(dtype, copy=False)
+    if not reuse:
+        return (data.astype(np.int32) * int(slope) + int(intercept)).astype(dtype, copy=False)
+    values = data if data.dtype.itemsize == dtype.itemsize else data.astype(dtype)
+    unsigned = values.view(f"u{values.dtype.itemsize}")            # unsigned: wraps, as C defines it
+    if slope != 1:
+        np.multiply(unsigned, np.array(int(slope) % (1 << 8 * unsigned.itemsize), unsigned.dtype), out=unsigned)
+    if intercept != 0:
+        np.add(unsigned, np.array(int(intercept) % (1 << 8 * unsigned.itemsize), unsigned.dtype), out=unsigned)
+    return values.view(dtype)
 
 
 def _slope_intercept(ds, slope=None, intercept=None):
