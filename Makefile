@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN = $(VENV)/bin
 
-.PHONY: demo test lint docs wheel-check constraints benchmark samples golden mutants fuzz clean
+.PHONY: demo test lint docs wheel-check constraints benchmark bench-compare samples golden mutants fuzz clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -39,6 +39,13 @@ constraints: | $(BIN)/python
 
 benchmark: $(VENV)/.installed
 	$(BIN)/python -m benchmarks.bench
+
+# The key figures (whole command and its stages, ftb, raycast, encode, encode --octree, a batch of studies) of the
+# working tree beside those of REF, interleaved in one run, with their ratios: make bench-compare REF=HEAD~5
+REF ?= HEAD
+REPEAT ?= 3
+bench-compare: $(VENV)/.installed
+	$(BIN)/python -m benchmarks.compare $(REF) --repeat $(REPEAT)
 
 samples: $(VENV)/.installed
 	$(BIN)/voxrender samples samples

@@ -45,7 +45,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from benchmarks import big_stack
+from benchmarks import big_stack, studies
 from benchmarks.masks import bench_mask_folder
 from voxrender import io, prep, segments
 from voxrender._render import DEFAULT_METHOD, METHODS, render
@@ -660,6 +660,8 @@ def markdown(results):
                   ", ".join(f"{m} {e:.2f}" for m, e in data["exponents_largest"].items()), ""]
     if results.get("big_stack"):
         lines += big_stack.markdown_lines(results["big_stack"])
+    if results.get("studies"):
+        lines += studies.markdown_lines(results["studies"])
     return "\n".join(lines)
 
 
@@ -759,6 +761,7 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
             "octree_files": bench_octree_files(encoded, repeat),
             "octree_build": bench_octree_build(encoded),
             "big_stack": big_stack.bench_big_stack(),
+            "studies": studies.run(data, min(repeat, 3)),
             "sorted_octree": bench_sorted_octree(repeat),
             "raycast": bench_raycast(min(repeat, 3), {
                 "thin shell 128^3": (segments.encode(thin_shell()), View(30.0, 10.0, 0.0, (256, 256), 1.5)),
