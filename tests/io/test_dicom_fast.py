@@ -189,3 +189,24 @@ def test_vhf_head(monkeypatch):
     values = plain_read(path, monkeypatch)
     assert values.dtype == expected.dtype == np.int16 and values.shape == (234, 512, 512)
     np.testing.assert_array_equal(values, expected)
+
+
+
+def test_header_values_stored_alike_are_decoded_once():
+    """The header pass decodes a value stored as an earlier file's only when it is asked; one stored otherwise
+    (here damaged: three bytes of an unsigned short) is decoded, and fails, at once."""
+    from pydicom.dataelem import RawDataElement
+    from pydicom.dataset import Dataset
+    from pydicom.errors import BytesLengthException
+
+    def header(rows):
+        return Dataset({0x00280010: RawDataElement(pydicom.tag.BaseTag(0x00280010), "US", len(rows), rows, 0, False,
+                                                   True)})
+
+    first, alike, damaged, decoded = header(b"\x03\x00"), header(b"\x03\x00"), header(b"\x03\x00\x00"), {}
+    dicom._decode_header(first, decoded)
+    dicom._decode_header(alike, decoded)
+    assert not isinstance(first.get_item(0x00280010), RawDataElement)
+    assert isinstance(alike.get_item(0x00280010), RawDataElement) and alike.Rows == first.Rows == 3
+    with pytest.raises(BytesLengthException):
+        dicom._decode_header(damaged, decoded)

@@ -46,6 +46,8 @@ NOT_IMAGES = ("SR", "PR", "KO", "RTPLAN", "RTRECORD", "REG", "DOC")
 HEADER_KEYWORDS = ("Rows", "Columns", "Modality", "SOPClassUID", "SeriesInstanceUID", "SeriesDescription",
                    "FrameOfReferenceUID", "NumberOfFrames", "ImagePositionPatient", "ImageOrientationPatient",
                    "InstanceNumber", "PixelSpacing", "SliceThickness", "SpacingBetweenSlices")
+HEADER_TAGS = (0x00280010, 0x00280011, 0x00080060, 0x00080016, 0x0020000E, 0x0008103E, 0x00200052, 0x00280008,
+               0x00200032, 0x00200037, 0x00200013, 0x00280030, 0x00180050, 0x00180088)      # theirs, in their order
 # The transfer syntaxes whose pixel data this reader takes straight from the file (uncompressed, little endian),
 # with whether their elements are implicit VR; any other is decoded by pydicom.
 PLAIN_SYNTAXES = {"1.2.840.10008.1.2": True,            # Implicit VR Little Endian
@@ -172,12 +174,11 @@ def _series_files(folder, progress, series):
     if not files:
         raise InputError(f"{folder} holds no DICOM files")
     damaged = damaged_file_errors()
-    headers, aside, plain = [], [], {}
+    headers, aside, plain, decoded, modules = [], [], {}, {}, {}
     for f in progress(files, len(files), "reading DICOM headers"):
         try:
             ds, position, element = _read_header(f)
-            for keyword in HEADER_KEYWORDS:       # pydicom decodes a value when first asked: a damaged one fails here
-                ds.get(keyword)
+            _decode_header(ds, decoded)
         except damaged as exc:
             raise InputError(f"cannot read DICOM file {f}: {first_line(exc)}") from None
         kind = SEGMENTATIONS.get(str(ds.get("SOPClassUID", "")))
@@ -190,7 +191,7 @@ def _series_files(folder, progress, series):
             raise InputError(f"DICOM file {f} holds no image (no {', '.join(missing)}; modality or class: {kind}); "
                              "give a folder of image slices")
         headers.append((f, ds))
-        at = _plain_pixels(ds, position, element)
+        at = _plain_pixels(ds, position, element, modules)
         if at is not None:
             plain[f] = at
     if not headers:
@@ -208,6 +209,36 @@ def _series_files(folder, progress, series):
         raise InputError(f"{folder} holds {len(groups)} DICOM series; choose one by its UID: "
                          f"{_list_series(groups)}", parameter="series")
     return next(iter(groups.values())), aside, plain
+
+
+def _decode_header(ds, decoded):
+    """Decode the values of :data:`HEADER_KEYWORDS` in the header ``ds``: pydicom decodes a value when first asked,
+    and a damaged one fails here, naming its file.  A value stored as the one of an earlier file of the folder
+    that decoded (``decoded``, by tag: kept up to date) decodes as it did; it is left for when it is asked (a
+    series' slices mostly share their orientation, spacing, UIDs ...).
+    """
+    charset = _raw_key(ds.get_item(0x00080005))
+    for tag in HEADER_TAGS:
+        raw = ds.get_item(tag)
+        if raw is None:
+            continue
+        key = _raw_key(raw)
+        if key is not None and decoded.get(tag) == (charset, key):
+            continue
+        ds[tag]                                                     # noqa: B018 - decodes it
+        if key is not None:
+            decoded[tag] = (charset, key)
+
+
+def _raw_key(raw):
+    """What decides how pydicom decodes the element ``raw`` while it is still undecoded (its VR, bytes and
+    encoding), else ``None``.
+    """
+    from pydicom.dataelem import RawDataElement
+
+    if not isinstance(raw, RawDataElement):
+        return None
+    return raw.VR, raw.value, raw.is_implicit_VR, raw.is_little_endian
 
 
 def _read_header(path):
@@ -266,12 +297,16 @@ class _Plain:
 
 
 PIXEL_TAGS = {(0x7FE0, 0x0010), (0x7FE0, 0x0009), (0x7FE0, 0x0008)}     # where pydicom stops before the pixels
+# The elements that say how pixels are stored: SamplesPerPixel, PhotometricInterpretation, NumberOfFrames, Rows,
+# Columns, BitsAllocated, BitsStored, PixelRepresentation.
+PIXEL_MODULE = (0x00280002, 0x00280004, 0x00280008, 0x00280010, 0x00280011, 0x00280100, 0x00280101, 0x00280103)
 
 
-def _plain_pixels(ds, position, element):
+def _plain_pixels(ds, position, element, modules=None):
     """Where the slice whose header is ``ds`` holds its pixels, read at ``position`` with its first bytes there,
     ``element``, when it stores them plainly (:class:`_Plain`), its header valid as pydicom's pixel_array checks
-    it; else ``None``: pydicom decodes them.
+    it; else ``None``: pydicom decodes them.  ``modules`` (a dict kept up to date) holds what the headers of a
+    folder's files said, by the undecoded elements that said it: a series' slices mostly store theirs alike.
 
     Plainly means an uncompressed little endian transfer syntax read as its file meta header says (on a little
     endian machine); one grey sample of 8, 16 or 32 bits (BitsStored 1 to BitsAllocated, PixelRepresentation 0
@@ -279,21 +314,17 @@ def _plain_pixels(ds, position, element):
     byte more, an odd length's padding).
     Anything else, odd or damaged, keeps pydicom's reading and its messages.
     """
-    try:
-        syntax = str(ds.file_meta.TransferSyntaxUID)
-        implicit = PLAIN_SYNTAXES.get(syntax)
-        if implicit is None or tuple(ds.original_encoding) != (implicit, True) or sys.byteorder != "little":
-            return None
-        if int(ds.SamplesPerPixel) != 1 or str(ds.PhotometricInterpretation) not in ("MONOCHROME1", "MONOCHROME2") \
-                or ("NumberOfFrames" in ds and ds.NumberOfFrames != 1):
-            return None
-        allocated, stored, signed = int(ds.BitsAllocated), int(ds.BitsStored), int(ds.PixelRepresentation)
-        rows, columns = int(ds.Rows), int(ds.Columns)
-    except (AttributeError, KeyError, ValueError, TypeError, NotImplementedError, OverflowError):
+    raws = tuple(_raw_key(ds.get_item(tag)) for tag in PIXEL_MODULE)
+    key = None if any(raw is None and tag in ds for raw, tag in zip(raws, PIXEL_MODULE, strict=True)) else \
+        (str(ds.file_meta.get("TransferSyntaxUID")), tuple(ds.original_encoding), raws)
+    module = modules.get(key) if modules is not None and key is not None else None
+    if module is None:
+        module = _pixel_module(ds)
+        if modules is not None and key is not None:
+            modules[key] = module
+    if not module:
         return None
-    if allocated not in (8, 16, 32) or not 1 <= stored <= allocated or signed not in (0, 1) or \
-            not (0 < rows < 1 << 16 and 0 < columns < 1 << 16):
-        return None
+    implicit, rows, columns, allocated, stored, signed = module
     size = 8 if implicit else 12            # tag, length; or tag, VR, two reserved bytes, length
     if len(element) < size or struct.unpack_from("<HH", element) != (0x7FE0, 0x0010) or \
             (not implicit and element[4:6] not in (b"OB", b"OW")):
@@ -303,6 +334,28 @@ def _plain_pixels(ds, position, element):
     if length not in (expected, expected + expected % 2):
         return None
     return _Plain(position + size, np.dtype(f"{'i' if signed else 'u'}{allocated // 8}"), allocated - stored)
+
+
+def _pixel_module(ds):
+    """``(implicit VR, rows, columns, BitsAllocated, BitsStored, signed)`` of the header ``ds`` when its pixels
+    may be stored plainly (see :func:`_plain_pixels`), else ``()``.
+    """
+    try:
+        syntax = str(ds.file_meta.TransferSyntaxUID)
+        implicit = PLAIN_SYNTAXES.get(syntax)
+        if implicit is None or tuple(ds.original_encoding) != (implicit, True) or sys.byteorder != "little":
+            return ()
+        if int(ds.SamplesPerPixel) != 1 or str(ds.PhotometricInterpretation) not in ("MONOCHROME1", "MONOCHROME2") \
+                or ("NumberOfFrames" in ds and ds.NumberOfFrames != 1):
+            return ()
+        allocated, stored, signed = int(ds.BitsAllocated), int(ds.BitsStored), int(ds.PixelRepresentation)
+        rows, columns = int(ds.Rows), int(ds.Columns)
+    except (AttributeError, KeyError, ValueError, TypeError, NotImplementedError, OverflowError):
+        return ()
+    if allocated not in (8, 16, 32) or not 1 <= stored <= allocated or signed not in (0, 1) or \
+            not (0 < rows < 1 << 16 and 0 < columns < 1 << 16):
+        return ()
+    return implicit, rows, columns, allocated, stored, signed
 
 
 def _read_plain(path, at, out):
