@@ -53,7 +53,6 @@ HEADER_TAGS = (0x00280010, 0x00280011, 0x00080060, 0x00080016, 0x0020000E, 0x000
 PLAIN_SYNTAXES = {"1.2.840.10008.1.2": True,            # Implicit VR Little Endian
                   "1.2.840.10008.1.2.1": False}         # Explicit VR Little Endian
 HEADER_BYTES = 1 << 14      # a slice's header is read in one call of this many bytes: most end (at their pixels) in it
-READ_AHEAD = 4              # compressed slices decoded ahead of the one placed, on the thread pool
 
 
 def damaged_file_errors():
@@ -120,8 +119,8 @@ def read_dicom(folder, progress, series=None):
     if all(a is not None for a in at) and len({a.dtype for a in at}) == 1:
         values = _read_plain_slices(items, at, progress, folder)
     else:
-        with _decoding_pool(items, plain) as pool:
-            values = fill_stack(items, _slices_decoded(items, plain, pool), "reading DICOM slices", progress, folder)
+        values = fill_stack(items, lambda item: (_values(*item, plain.get(item[0])), item[0].name),
+                            "reading DICOM slices", progress, folder)
     return Volume(values, spacing, meta, direction)
 
 
@@ -412,49 +411,6 @@ def _read_plain_slices(items, at, progress, folder):
         if not (in_place and np.may_share_memory(volume, stored)):
             volume[z] = data
     return volume
-
-
-@contextlib.contextmanager
-def _decoding_pool(items, plain):
-    """A thread pool to decode the slices ``items`` that ``plain`` does not place (compressed ones), when there are
-    several: pydicom's decoders (openjpeg, libjpeg, JPEG-LS) decode without the interpreter's lock.  ``None`` when
-    there is nothing to decode, or one core.
-    """
-    count = sum(f not in plain for f, _ in items)
-    workers = min(os.cpu_count() or 1, 4)
-    if count < 2 or workers < 2:
-        yield None
-        return
-    from concurrent.futures import ThreadPoolExecutor
-
-    pool = ThreadPoolExecutor(workers, thread_name_prefix="voxrender-dicom")
-    try:
-        yield pool
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
-
-
-def _slices_decoded(items, plain, pool=None):
-    """:func:`~voxrender.io._shared.fill_stack`'s ``read_slice`` for the slices ``items`` (asked in their order):
-    each slice's values and name, read plainly when ``plain`` places its pixels, else decoded by pydicom; on
-    ``pool`` (a thread pool) when given, :data:`READ_AHEAD` slices ahead of the one asked for.
-    """
-    decoded, ahead = {}, iter(range(len(items)))
-    asked = iter(range(len(items)))
-
-    def read_slice(item):
-        z = next(asked)
-        f, ds = item
-        if pool is None or f in plain:
-            return _values(f, ds, plain.get(f)), f.name
-        for k in ahead:                             # decode the next ones while this one is placed
-            if items[k][0] not in plain:
-                decoded[k] = pool.submit(_slice_values, items[k][0])
-            if k >= z + READ_AHEAD:
-                break
-        return decoded.pop(z).result(), f.name
-
-    return read_slice
 
 
 def _values(path, ds, at, buffer=None):
