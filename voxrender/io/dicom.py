@@ -392,9 +392,9 @@ def _read_plain_slices(items, at, progress, folder):
     shape = (len(items), int(first.Rows), int(first.Columns))
     check_fits(shape, at[0].dtype, folder)
     stored = np.empty(shape, at[0].dtype)
-    volume = None
+    volume, rescales = None, {}
     for z, ((f, ds), a) in enumerate(zip(progress(items, len(items), "reading DICOM slices"), at, strict=True)):
-        data = _rescale(_read_plain(f, a, stored[z]), ds, reuse=True)
+        data = _rescale(_read_plain(f, a, stored[z]), ds, *_rescaled_by(ds, rescales), reuse=True)
         in_place = np.may_share_memory(data, stored)
         if volume is None:
             if in_place:
@@ -592,6 +592,18 @@ def _rescale(data, ds, slope=None, intercept=None, reuse=False):
     if intercept != 0:
         np.add(unsigned, np.array(int(intercept) % (1 << 8 * unsigned.itemsize), unsigned.dtype), out=unsigned)
     return values.view(dtype)
+
+
+def _rescaled_by(ds, rescales):
+    """The RescaleSlope and RescaleIntercept of ``ds`` (:func:`_slope_intercept`), known without decoding them when
+    an earlier slice stored them alike (``rescales``, a dict kept up to date): a series' slices mostly share them.
+    """
+    raws = (_raw_key(ds.get_item(0x00281053)), _raw_key(ds.get_item(0x00281052)))
+    if any(raw is None and tag in ds for raw, tag in zip(raws, (0x00281053, 0x00281052), strict=True)):
+        return _slope_intercept(ds)
+    if raws not in rescales:
+        rescales[raws] = _slope_intercept(ds)
+    return rescales[raws]
 
 
 def _slope_intercept(ds, slope=None, intercept=None):
