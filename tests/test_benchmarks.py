@@ -146,7 +146,9 @@ def test_studies_markdown_on_fake_results():
     results = {"commit": "abc", "load": 1.0,
                "studies": {"studies": 24, "views": 4, "size": 512, "repeat": 3, "rows": rows,
                            "formats": {"dicom": 12, "nifti": 12}, "sources": {"vhf_head": 18, "headsq": 6},
-                           "pixels": {"voxrender": [10, 20], "vtk": [11, 19]}},
+                           "pixels": {"voxrender": [10, 20], "vtk": [11, 19]},
+                           "batch_stages": {"jobs 1": {"load": 0.4, "prepare": 0.8, "render": 0.08, "shade": 0.07,
+                                                       "write": 0.01}}},
                "whole_command": {"command": "voxrender render vhf_head", "repeat": 3, "wall": 0.8,
                                  "stages": {"load": 0.3, "prepare": 0.2}, "vtk_wall": 2.0,
                                  "vtk_stages": {"import": 0.6, "total": 1.9}, "pixels": {"voxrender": 5, "vtk": 6}}}
@@ -154,3 +156,15 @@ def test_studies_markdown_on_fake_results():
     assert "voxrender `--jobs 2` / VTK: 4.00x (target >= 3x: met)" in text
     assert "144 studies per minute (target >= 120: met)" in text
     assert "0.80 s wall (target <= 0.5 s: missed)" in text and "voxrender / VTK wall 0.40" in text
+    assert "- inside `voxrender batch --jobs 1` (its summary.csv, mean seconds): per study load 0.400" in text
+
+
+def test_batch_stages_from_a_summary(tmp_path):
+    from benchmarks import studies
+
+    summary = tmp_path / "summary.csv"
+    summary.write_text("input,view,status,load_s,prepare_s,render_s,shade_s,write_s\n"
+                       "a,v1,ok,1.0,2.0,0.1,0.2,0.3\na,v2,ok,1.0,2.0,0.3,0.2,0.1\nb,v1,ok,3.0,4.0,0.2,0.2,0.2\n"
+                       "c,v1,failed,,,,,\n")
+    stages = studies.batch_stages(summary)
+    assert stages == pytest.approx({"load": 2.0, "prepare": 3.0, "render": 0.2, "shade": 0.2, "write": 0.2})
