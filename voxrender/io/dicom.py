@@ -173,15 +173,15 @@ def _series_files(folder, progress, series):
     if not files:
         raise InputError(f"{folder} holds no DICOM files")
     damaged = damaged_file_errors()
-    headers, aside, plain, decoded, modules = [], [], {}, {}, {}
+    headers, aside, plain, decoded, modules, texts = [], [], {}, {}, {}, {}
     for f in progress(files, len(files), "reading DICOM headers"):
         try:
             ds, position, element = _read_header(f)
             _decode_header(ds, decoded)
         except damaged as exc:
             raise InputError(f"cannot read DICOM file {f}: {first_line(exc)}") from None
-        kind = SEGMENTATIONS.get(str(ds.get("SOPClassUID", "")))
-        if kind or str(ds.get("Modality", "")) in NOT_IMAGES:       # beside the slices, not one of them
+        kind = SEGMENTATIONS.get(_text(ds, 0x00080016, "", texts))                          # SOPClassUID
+        if kind or _text(ds, 0x00080060, "", texts) in NOT_IMAGES:       # Modality: beside the slices, not one
             aside.append((f, kind or str(ds.get("Modality"))))
             continue
         missing = [key for key in ("Rows", "Columns") if key not in ds]
@@ -199,7 +199,7 @@ def _series_files(folder, progress, series):
                          "give the image's series, with the segmentation as its labels", parameter="labels_from")
     groups = {}
     for f, ds in headers:
-        groups.setdefault(str(getattr(ds, "SeriesInstanceUID", "(no SeriesInstanceUID)")), []).append((f, ds))
+        groups.setdefault(_text(ds, 0x0020000E, "(no SeriesInstanceUID)", texts), []).append((f, ds))
     if series is not None:
         if series not in groups:
             raise InputError(f"no series {series} in {folder}; it holds {_list_series(groups)}", parameter="series")
@@ -227,6 +227,21 @@ def _decode_header(ds, decoded):
         ds[tag]                                                     # noqa: B018 - decodes it
         if key is not None:
             decoded[tag] = (charset, key)
+
+
+def _text(ds, tag, default, texts):
+    """The value of ``tag`` in the header ``ds`` as text (``default`` when it has none), known without decoding it
+    when an earlier header stored it alike (``texts``, a dict kept up to date).
+    """
+    if tag not in ds:
+        return default
+    key = _raw_key(ds.get_item(tag))
+    if key is None:
+        return str(ds[tag].value)
+    key = (tag, _raw_key(ds.get_item(0x00080005)), key)
+    if key not in texts:
+        texts[key] = str(ds[tag].value)
+    return texts[key]
 
 
 def _raw_key(raw):
