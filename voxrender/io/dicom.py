@@ -216,7 +216,7 @@ def _decode_header(ds, decoded):
     that decoded (``decoded``, by tag: kept up to date) decodes as it did; it is left for when it is asked (a
     series' slices mostly share their orientation, spacing, UIDs ...).
     """
-    charset = _raw_key(ds.get_item(0x00080005))
+    charset = _charset(ds)
     for tag in HEADER_TAGS:
         raw = ds.get_item(tag)
         if raw is None:
@@ -238,10 +238,16 @@ def _text(ds, tag, default, texts):
     key = _raw_key(ds.get_item(tag))
     if key is None:
         return str(ds[tag].value)
-    key = (tag, _raw_key(ds.get_item(0x00080005)), key)
+    key = (tag, _charset(ds), key)
     if key not in texts:
         texts[key] = str(ds[tag].value)
     return texts[key]
+
+
+def _charset(ds):
+    """The SpecificCharacterSet of ``ds``, undecoded or decoded, that text values are decoded by."""
+    item = ds.get_item(0x00080005)
+    return _raw_key(item) or (None if item is None else ("decoded", str(item.value)))
 
 
 def _raw_key(raw):
