@@ -15,11 +15,13 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 
+from .octree import _on_threads
 from .segments import is_mapped, read_mapped
 
 
@@ -42,6 +44,7 @@ GAUSSIAN = _stencil(2, *GAUSSIAN_1D)
 # values at a time from the file: through the mapping, the pages they touch would stay in memory (gigabytes).
 RESIDENT_BYTES = 1 << 28
 FILE_BLOCK = 1 << 22
+THREAD_VOXELS = 1 << 16    # the band voxels whose gradient is worth a thread of their own
 
 
 def octahedral_encode(normals):
@@ -371,6 +374,22 @@ def _gradient_on_grid(grid, voxels, smooth, derive):
     # whole numbers with whole weights (a Sobel kernel on integers of 16 bits or fewer) are summed in int32:
     # exactly, as float64 sums them, at half the memory traffic
     kind = np.int32 if radius == 1 and _exact_in_float32(grid) else np.float64
+    # parts of the band on threads (NumPy lets go of Python's lock): each voxel's sum is its own, the same
+    parts = max(1, min(os.cpu_count() or 1, len(x) // THREAD_VOXELS))
+    bounds = np.linspace(0, len(x), parts + 1).astype(np.int64)
+    found = _on_threads(lambda ab: _separable_sums(grid, z[ab[0]:ab[1]], y[ab[0]:ab[1]], x[ab[0]:ab[1]], smooth,
+                                                   derive, kind), zip(bounds[:-1], bounds[1:], strict=True))
+    found = np.concatenate(found, axis=1)
+    gradient[inner] = found.T
+    return gradient
+
+
+def _separable_sums(grid, z, y, x, smooth, derive, kind):
+    """:func:`_gradient_on_grid`'s sums at voxels ``z, y, x`` whose rows hold the kernel's reach in x: ``(3, N)``
+    of ``kind``, each voxel's taken in one fixed order.
+    """
+    radius = len(smooth) // 2
+    nz, ny, nx = grid.shape
     flat = grid.ravel()
     found = np.zeros((3, len(x)), kind)
     for dz in range(2 * radius + 1):
@@ -385,8 +404,7 @@ def _gradient_on_grid(grid, voxels, smooth, derive):
             _add(found[0], kind(smooth[dy] * smooth[dz]), along)
             _add(found[1], kind(derive[dy] * smooth[dz]), across)
             _add(found[2], kind(smooth[dy] * derive[dz]), across)
-    gradient[inner] = found.T
-    return gradient
+    return found
 
 
 def _add(total, weight, values):
