@@ -415,8 +415,8 @@ def bench_studies(studies, repeat, views=VIEWS, size=SIZE, vtk=None):
             for how in walls:
                 out = folder / f"{how.replace(' ', '')}-{r}"
                 if how == "vtk":
-                    wall, stages = run_vtk(studies, out, views, size)
-                    vtk_stages.append(stages)
+                    wall, seconds = run_vtk(studies, out, views, size)
+                    vtk_stages.append(seconds)
                 else:
                     wall = run_batch(manifest, out, int(how.split()[1]), size)
                     stages.setdefault(how, []).append(batch_stages(out / "summary.csv"))

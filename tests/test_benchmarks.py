@@ -124,6 +124,19 @@ def test_vtk_script_renders_the_studies(tmp_path):
         assert max(drawn) > 0.2 * 48 * 48 and max(drawn) < 48 * 48
 
 
+def test_studies_section_runs_small(tmp_path):
+    """The batch beside the VTK script (when installed) on two tiny studies, and its lines."""
+    from benchmarks import studies
+
+    written = studies.write_studies(tmp_path / "studies", count=2, cut_from=_tiny_sources())
+    result = studies.bench_studies(written, 1, size=32)
+    assert set(result["rows"]) >= {"jobs 1", "jobs 2"} and result["studies"] == 2
+    assert set(result["batch_stages"]["jobs 1"]) == {"load", "prepare", "render", "shade", "write"}
+    assert len(result["pixels"]["voxrender"]) == len(studies.VIEWS)
+    text = "\n".join(studies.markdown_lines({"studies": result}))
+    assert "| `voxrender batch --jobs 2` |" in text
+
+
 def test_compare_table_on_fake_timings():
     from benchmarks import compare
 
