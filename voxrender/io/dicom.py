@@ -139,19 +139,18 @@ def open_dicom(folder, series=None):
         stack.meta.update(_beside(aside))
         return stack
     items, spacing, meta, direction = _slices_placed(folder, chosen, aside)
-    told = [_told_type(ds) for _, ds in items]
-    found = {_values(f, ds, plain.get(f)).dtype for (f, ds), dtype in zip(items, told, strict=True) if dtype is None}
-    dtype = np.result_type(*({dtype for dtype in told if dtype is not None} | found))   # as fill_stack widens
     shape = (len(items), int(items[0][1].Rows), int(items[0][1].Columns))
+    told = [_told_type(ds) for _, ds in items]
+    buffers = {}
+    found = {_values(f, ds, plain.get(f), _buffer(buffers, shape[1:], plain.get(f))).dtype
+             for (f, ds), dtype in zip(items, told, strict=True) if dtype is None}
+    dtype = np.result_type(*({dtype for dtype in told if dtype is not None} | found))   # as fill_stack widens
 
     def read_slices(z0, z1):
-        out = np.empty((z1 - z0, *shape[1:]), dtype)
-        buffer = None
+        out, buffers = np.empty((z1 - z0, *shape[1:]), dtype), {}
         for k, (f, ds) in enumerate(items[z0:z1]):
             at = plain.get(f)
-            if at is not None and (buffer is None or buffer.dtype != at.dtype):
-                buffer = np.empty(shape[1:], at.dtype)      # one slice's stored values, read again and again
-            place_slice(out, k, _values(f, ds, at, buffer), f.name, items[0][0].name)
+            place_slice(out, k, _values(f, ds, at, _buffer(buffers, shape[1:], at)), f.name, items[0][0].name)
         return out
 
     return Stack(shape, dtype, read_slices, spacing, direction, meta, sum(f.stat().st_size for f, _ in items))
@@ -432,6 +431,17 @@ def _read_plain_slices(items, at, progress, folder):
         if not (in_place and np.may_share_memory(volume, stored)):
             volume[z] = data
     return volume
+
+
+def _buffer(buffers, shape, at):
+    """A slice of ``shape`` of the type the pixels ``at`` places are stored in, from ``buffers`` (by type, kept up
+    to date): one slice's stored values, read again and again.  ``None`` for pixels pydicom decodes.
+    """
+    if at is None:
+        return None
+    if at.dtype not in buffers:
+        buffers[at.dtype] = np.empty(shape, at.dtype)
+    return buffers[at.dtype]
 
 
 def _values(path, ds, at, buffer=None):
