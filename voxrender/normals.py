@@ -54,6 +54,9 @@ def octahedral_encode(normals):
     [[0.0, 0.6, -0.8]]
     """
     n = np.asarray(normals, dtype=np.float64)
+    parts = max(1, min(os.cpu_count() or 1, len(n) // THREAD_VOXELS))
+    if parts > 1:                                   # parts on threads: each vector's code is its own
+        return np.concatenate(_on_threads(octahedral_encode, np.array_split(n, parts)))
     n = n / np.maximum(np.abs(n).sum(axis=1, keepdims=True), 1e-30)
     x, y, z = n.T
     folded_x = np.where(z < 0, (1 - np.abs(y)) * np.where(x >= 0, 1, -1), x)
@@ -126,15 +129,17 @@ def band_voxels(mask, slices=16, own=None):
     mask = np.asarray(mask, dtype=bool)
     nz = mask.shape[0]
     begin, end = own or (0, nz)
-    found = []
-    for first in range(begin, end, slices):
+
+    def block(first):
         last = min(first + slices, end)
         below, above = max(first - 1, 0), min(last + 1, nz)
         # the extra slices only show their neighbours to the chosen ones: their own band (which counts the
         # block's ends as the volume's edge) is not kept
         band = surface_band(mask[below:above])[first - below:first - below + last - first]
         z, y, x = np.unravel_index(np.flatnonzero(band), band.shape)
-        found.append((z + first, y, x))
+        return z + first, y, x
+
+    found = _on_threads(block, range(begin, end, slices))          # the blocks on threads, in order
     return tuple(np.concatenate(part) for part in zip(*found, strict=True)) if found else (np.zeros(0, np.int64),) * 3
 
 
