@@ -253,9 +253,7 @@ def _raw_key(raw):
     """What decides how pydicom decodes the element ``raw`` while it is still undecoded (its VR, bytes and
     encoding), else ``None``.
     """
-    from pydicom.dataelem import RawDataElement
-
-    if not isinstance(raw, RawDataElement):
+    if not getattr(raw, "is_raw", False):             # a RawDataElement, not a DataElement nor None
         return None
     return raw.VR, raw.value, raw.is_implicit_VR, raw.is_little_endian
 
