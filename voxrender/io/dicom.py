@@ -52,7 +52,9 @@ HEADER_TAGS = (0x00280010, 0x00280011, 0x00080060, 0x00080016, 0x0020000E, 0x000
 # with whether their elements are implicit VR; any other is decoded by pydicom.
 PLAIN_SYNTAXES = {"1.2.840.10008.1.2": True,            # Implicit VR Little Endian
                   "1.2.840.10008.1.2.1": False}         # Explicit VR Little Endian
-HEADER_BYTES = 1 << 14      # a slice's header is read in one call of this many bytes: most end (at their pixels) in it
+# A header is read in one call of this many bytes: most end (at their pixel data) within it, long private ones
+# (Siemens CSA ...) too; the rest of a slice file is read straight into the volume.
+HEADER_BYTES = 1 << 16
 
 
 def damaged_file_errors():
