@@ -405,22 +405,24 @@ def _read_plain(path, at, out):
 
 def _read_plain_slices(items, at, progress, folder):
     """The rescaled values of the slices ``items`` (all stored plainly, in one type, where ``at`` says), as
-    :func:`~voxrender.io._shared.fill_stack` gives them: each slice is read straight into the volume and rescaled
-    there while its type allows (the stored values' width), else into a volume of the type they need.
+    :func:`~voxrender.io._shared.fill_stack` gives them.  When the first slice's values keep the stored values'
+    width (int16 from 16 bits), each slice is read straight into the volume and rescaled there; otherwise each is
+    read into one slice and placed in a volume of the type they need.
     """
     first = items[0][1]
     shape = (len(items), int(first.Rows), int(first.Columns))
-    check_fits(shape, at[0].dtype, folder)
-    stored = np.empty(shape, at[0].dtype)
-    volume, rescales = None, {}
+    scratch = np.empty(shape[1:], at[0].dtype)
+    stored = volume = None
+    rescales = {}
     for z, ((f, ds), a) in enumerate(zip(progress(items, len(items), "reading DICOM slices"), at, strict=True)):
-        data = _rescale(_read_plain(f, a, stored[z]), ds, *_rescaled_by(ds, rescales), reuse=True)
-        in_place = np.may_share_memory(data, stored)
+        data = _rescale(_read_plain(f, a, scratch if stored is None else stored[z]), ds,
+                        *_rescaled_by(ds, rescales), reuse=True)
         if volume is None:
-            if in_place:
+            check_fits(shape, data.dtype, folder)
+            if np.may_share_memory(data, scratch):              # rescaled in its own width: in place from now on
+                stored = np.empty(shape, at[0].dtype)
                 volume = stored.view(data.dtype)
             else:
-                check_fits(shape, data.dtype, folder)
                 volume = np.empty(shape, data.dtype)
         elif not np.can_cast(data.dtype, volume.dtype, "safe"):    # a later slice needs a wider type: widen once
             wider = np.result_type(volume.dtype, data.dtype)
@@ -428,7 +430,7 @@ def _read_plain_slices(items, at, progress, folder):
             widened = np.empty(shape, wider)
             widened[:z] = volume[:z]
             volume = widened
-        if not (in_place and np.may_share_memory(volume, stored)):
+        if not np.may_share_memory(data, volume):                # not already there
             volume[z] = data
     return volume
 
