@@ -295,7 +295,7 @@ for study in job["studies"]:
         common = min(scale for _, scale in fits)
         framing = [(focal, common) for focal, _ in fits]
     opacity = vtkPiecewiseFunction()                  # benchmarks.bench.VtkPeer's settings
-    low, high = image.GetScalarRange()
+    low, high = image.GetScalarTypeMin(), image.GetScalarTypeMax()   # the type's range: no pass over the values
     opacity.AddPoint(min(low, threshold) - 1, 0.0)
     opacity.AddPoint(threshold - 1e-3, 0.0)
     opacity.AddPoint(threshold, 1.0)
