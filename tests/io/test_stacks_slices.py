@@ -246,8 +246,10 @@ def test_dicom_headers_that_tell_the_type_spare_a_pass_over_the_pixels(tmp_path,
     write_series(tmp_path, random_stack((4, 3, 5)).astype(np.int16), intercept=0)          # int16 whatever it holds
     write_series(tmp_path / "ct", random_stack((4, 3, 5)).astype(np.int16), intercept=-1024)
     read = []
-    pixels = dicom._dicom_pixels
-    monkeypatch.setattr(dicom, "_dicom_pixels", lambda path: read.append(path) or pixels(path))
+    for name in ("_dicom_pixels", "_read_plain"):                  # decoded by pydicom, or read straight
+        function = getattr(dicom, name)
+        monkeypatch.setattr(dicom, name, lambda path, *args, function=function: read.append(path) or
+                            function(path, *args))
     assert io.open_stack(tmp_path).dtype == np.int16 and read == []
     assert io.open_stack(tmp_path / "ct").dtype == np.int16 and len(read) == 4     # a signed 16-bit CT: its range
 
