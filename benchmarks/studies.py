@@ -271,8 +271,9 @@ for study in job["studies"]:
     seconds["read"] += t2 - t
     nx, ny, nz = image.GetDimensions()
     spacing, origin = np.array(image.GetSpacing()), np.array(image.GetOrigin())
-    # VTK's world axes against the patient's L, P, S: the DICOM reader stores rows bottom-up (y toward A)
-    axes = np.diag([1.0, -1.0, 1.0]) if study["format"] == "dicom" else np.eye(3)
+    # VTK's world axes against the patient's L, P, S: the DICOM reader stores rows bottom-up and the slices from
+    # the last (y toward A, z toward I: a turn of 180 degrees about x); the NIfTI reader keeps the file's order
+    axes = np.diag([1.0, -1.0, -1.0]) if study["format"] == "dicom" else np.eye(3)
     centre = origin + spacing * (np.array([nx, ny, nz]) - 1) / 2
     rotations = [rotation(*view[1:]) @ axes for view in job["views"]]   # rows: right, down, forward in VTK's world
     if job.get("scale"):                  # pixels per voxel of the smallest spacing, on the volume centre
