@@ -210,3 +210,34 @@ def test_header_values_stored_alike_are_decoded_once():
     assert isinstance(alike.get_item(0x00280010), RawDataElement) and alike.Rows == first.Rows == 3
     with pytest.raises(BytesLengthException):
         dicom._decode_header(damaged, decoded)
+
+
+def test_a_file_cut_in_its_header_is_one_line(tmp_path):
+    """Cut within its image pixel elements (0028,xxxx), a header ends in a value too short for its VR: the plain
+    reading does not take it, and pydicom's (or the header checks) say what is wrong in one line, for the whole
+    volume and slab by slab."""
+    paths = write_series(tmp_path, np.zeros((3, 8, 8)))
+    whole = paths[1].read_bytes()
+    start = whole.index(b"\x28\x00\x02\x00")                        # SamplesPerPixel, the module's first
+    for cut in range(start, whole.index(b"\xe0\x7f\x10\x00")):     # to the pixel data element
+        paths[1].write_bytes(whole[:cut])
+        for read in (io.read_volume, lambda path: io.open_stack(path).read_slices(0, 3)):
+            with pytest.raises(InputError) as info:
+                read(tmp_path)
+            assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("damage", ["cut", "garbled"])
+def test_a_damaged_deflated_file_is_one_line(tmp_path, monkeypatch, damage):
+    """A deflated data set (never read plainly) that is cut or garbled is a damaged file, not zlib's traceback."""
+    from pydicom.uid import DeflatedExplicitVRLittleEndian
+
+    raw = RNG.integers(-2000, 2000, (3, 6, 7))
+    paths = recode(write_series(tmp_path, np.zeros((3, 6, 7))), DeflatedExplicitVRLittleEndian, raw=raw)
+    assert all(dicom._plain_pixels(*dicom._read_header(path)) is None for path in paths)
+    np.testing.assert_array_equal(assert_same_values(tmp_path, monkeypatch, plain=False), raw - 1024)
+    whole = paths[1].read_bytes()
+    middle = len(whole) // 2
+    paths[1].write_bytes(whole[:-20] if damage == "cut" else whole[:middle] + b"\x55" * 40 + whole[middle + 40:])
+    with pytest.raises(InputError, match=f"cannot read DICOM file {paths[1]}: Error -"):
+        io.read_volume(tmp_path)

@@ -13,6 +13,7 @@ import os
 import struct
 import sys
 import warnings
+import zlib
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -63,12 +64,12 @@ def damaged_file_errors():
     Its own errors; ``struct.error`` and ``EOFError`` for cut-off elements; ``AttributeError`` (and ``KeyError``) for
     a missing required element; ``ValueError`` and ``TypeError`` for values that are not what their VR says;
     ``NotImplementedError`` for an unknown VR or transfer syntax; ``RuntimeError`` when no installed decoder reads
-    the pixel data.
+    the pixel data; ``zlib.error`` for a deflated data set that is cut or garbled.
     """
     from pydicom.errors import BytesLengthException, InvalidDicomError
 
     return (InvalidDicomError, BytesLengthException, OSError, EOFError, struct.error, AttributeError, KeyError,
-            ValueError, TypeError, NotImplementedError, RuntimeError)
+            ValueError, TypeError, NotImplementedError, RuntimeError, zlib.error)
 
 
 def _dicom_files(folder):
@@ -369,7 +370,7 @@ def _pixel_module(ds):
             return ()
         allocated, stored, signed = int(ds.BitsAllocated), int(ds.BitsStored), int(ds.PixelRepresentation)
         rows, columns = int(ds.Rows), int(ds.Columns)
-    except (AttributeError, KeyError, ValueError, TypeError, NotImplementedError, OverflowError):
+    except (*damaged_file_errors(), OverflowError):    # a value cut short (a file cut in its header) too
         return ()
     if allocated not in (8, 16, 32) or not 1 <= stored <= allocated or signed not in (0, 1) or \
             not (0 < rows < 1 << 16 and 0 < columns < 1 << 16):
@@ -671,7 +672,7 @@ def _told_type(ds, slope=None, intercept=None):
         allocated, bits = int(ds.BitsAllocated), int(ds.BitsStored)        # 32 or 64 allocated: maybe floats
         signed = int(ds.get("PixelRepresentation", 0) or 0) == 1
         slope, intercept = _slope_intercept(ds, slope, intercept)
-    except (AttributeError, KeyError, ValueError, TypeError, InputError):      # the pixels' reading will say
+    except (*damaged_file_errors(), InputError):                  # the pixels' reading will say
         return None
     if not grey or allocated not in (8, 16) or not 1 <= bits <= allocated or \
             not np.all(np.isfinite([slope, intercept])):
