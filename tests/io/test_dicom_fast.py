@@ -241,3 +241,57 @@ def test_a_damaged_deflated_file_is_one_line(tmp_path, monkeypatch, damage):
     paths[1].write_bytes(whole[:-20] if damage == "cut" else whole[:middle] + b"\x55" * 40 + whole[middle + 40:])
     with pytest.raises(InputError, match=f"cannot read DICOM file {paths[1]}: Error -"):
         io.read_volume(tmp_path)
+
+
+def test_monochrome1_and_bytes_after_the_pixels_are_read_plainly(tmp_path, monkeypatch):
+    """MONOCHROME1 is not inverted (pydicom's pixel_array does not invert it); a trailing padding element and stray
+    bytes after the pixel data are not read."""
+    raw = RNG.integers(0, 4096, (3, 5, 6))
+    paths = recode(write_series(tmp_path, np.zeros((3, 5, 6))), raw=raw, signed=False, stored=12,
+                   PhotometricInterpretation="MONOCHROME1", DataSetTrailingPadding=b"\xff" * 64)
+    for path in paths:
+        path.write_bytes(path.read_bytes() + b"\x01\x02" * 33)
+    np.testing.assert_array_equal(assert_same_values(tmp_path, monkeypatch), raw - 1024)
+
+
+def _write_encoded(path, ds, implicit, little):
+    """``ds`` written with its file meta as it is but its data set in the encoding given, whatever the meta says."""
+    from pydicom.filebase import DicomBytesIO
+    from pydicom.filewriter import write_dataset, write_file_meta_info
+
+    out = DicomBytesIO()
+    out.write(b"\0" * 128 + b"DICM")
+    write_file_meta_info(out, ds.file_meta, enforce_standard=True)
+    out.is_implicit_VR, out.is_little_endian = implicit, little
+    write_dataset(out, ds)
+    path.write_bytes(out.getvalue())
+
+
+@pytest.mark.filterwarnings("ignore:Expected explicit VR", "ignore:Expected implicit VR")
+@pytest.mark.parametrize("case", ["big endian", "meta says explicit", "meta says implicit", "float pixel data"])
+def test_files_pydicom_reads_otherwise_are_left_to_it(tmp_path, monkeypatch, case):
+    """Big endian, a data set encoded otherwise than its file meta says (pydicom reads it as it finds it), and
+    Float Pixel Data before the Pixel Data (pydicom refuses both) are not read plainly."""
+    from pydicom.uid import ExplicitVRBigEndian
+
+    raw = RNG.integers(-2000, 2000, (3, 5, 6))
+    paths = write_series(tmp_path, raw)
+    for path in paths:
+        ds = pydicom.dcmread(path)
+        if case == "big endian":
+            ds.PixelData = ds.pixel_array.astype(">i2").tobytes()
+            ds.file_meta.TransferSyntaxUID = ExplicitVRBigEndian
+            _write_encoded(path, ds, False, False)
+        elif case == "float pixel data":
+            ds.FloatPixelData = np.ones(30, "<f4").tobytes()
+            ds.save_as(path)
+        else:
+            ds.file_meta.TransferSyntaxUID = ExplicitVRLittleEndian if case.endswith("explicit") else \
+                ImplicitVRLittleEndian
+            _write_encoded(path, ds, case.endswith("explicit"), True)
+    assert all(dicom._plain_pixels(*dicom._read_header(path)) is None for path in paths)
+    if case == "float pixel data":
+        with pytest.raises(InputError, match="One and only one of 'Pixel Data', 'Float Pixel Data'"):
+            io.read_volume(tmp_path)
+    else:
+        np.testing.assert_array_equal(assert_same_values(tmp_path, monkeypatch, plain=False), raw - 1024)
