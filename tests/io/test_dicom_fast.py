@@ -295,3 +295,14 @@ def test_files_pydicom_reads_otherwise_are_left_to_it(tmp_path, monkeypatch, cas
             io.read_volume(tmp_path)
     else:
         np.testing.assert_array_equal(assert_same_values(tmp_path, monkeypatch, plain=False), raw - 1024)
+
+
+@pytest.mark.filterwarnings("ignore:Invalid value for VR UI")
+def test_a_damaged_series_uid_is_listed_on_one_line(tmp_path):
+    """A byte of a slice's SeriesInstanceUID garbled into a newline makes a second series: the message that lists
+    them stays one line."""
+    paths = write_series(tmp_path, np.zeros((3, 4, 4)), series_uid="1.2.3.4")
+    paths[1].write_bytes(paths[1].read_bytes().replace(b"1.2.3.4", b"1.2\n3.4"))
+    with pytest.raises(InputError, match="holds 2 DICOM series") as info:
+        io.read_volume(tmp_path)
+    assert "\n" not in str(info.value) and "1.2\\n3.4 (1 slices, test)" in str(info.value)

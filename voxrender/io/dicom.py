@@ -845,8 +845,12 @@ def _beside(aside):
 
 
 def _list_series(groups):
-    return "; ".join(f"{uid} ({len(items)} slices, {getattr(items[0][1], 'SeriesDescription', '')!s})"
-                     for uid, items in groups.items())
+    """The series of ``groups`` for a message, on one line: a control character of a damaged header (a newline in a
+    UID ...) is shown escaped.
+    """
+    listed = "; ".join(f"{uid} ({len(items)} slices, {getattr(items[0][1], 'SeriesDescription', '')!s})"
+                       for uid, items in groups.items())
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in listed)
 
 
 def _sort_dicom(items):
