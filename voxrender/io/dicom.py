@@ -175,7 +175,7 @@ def _series_files(folder, progress, series):
     if not files:
         raise InputError(f"{folder} holds no DICOM files")
     damaged = damaged_file_errors()
-    headers, aside, plain, decoded, modules, texts = [], [], {}, {}, {}, {}
+    headers, aside, plain, decoded, texts = [], [], {}, {}, {}
     for f in progress(files, len(files), "reading DICOM headers"):
         try:
             ds, position, element = _read_header(f)
@@ -192,7 +192,7 @@ def _series_files(folder, progress, series):
             raise InputError(f"DICOM file {f} holds no image (no {', '.join(missing)}; modality or class: {kind}); "
                              "give a folder of image slices")
         headers.append((f, ds))
-        at = _plain_pixels(ds, position, element, modules)
+        at = _plain_pixels(ds, position, element)
         if at is not None:
             plain[f] = at
     if not headers:
@@ -317,16 +317,12 @@ class _Plain:
 
 
 PIXEL_TAGS = {(0x7FE0, 0x0010), (0x7FE0, 0x0009), (0x7FE0, 0x0008)}     # where pydicom stops before the pixels
-# The elements that say how pixels are stored: SamplesPerPixel, PhotometricInterpretation, NumberOfFrames, Rows,
-# Columns, BitsAllocated, BitsStored, PixelRepresentation.
-PIXEL_MODULE = (0x00280002, 0x00280004, 0x00280008, 0x00280010, 0x00280011, 0x00280100, 0x00280101, 0x00280103)
 
 
-def _plain_pixels(ds, position, element, modules=None):
+def _plain_pixels(ds, position, element):
     """Where the slice whose header is ``ds`` holds its pixels, read at ``position`` with its first bytes there,
     ``element``, when it stores them plainly (:class:`_Plain`), its header valid as pydicom's pixel_array checks
-    it; else ``None``: pydicom decodes them.  ``modules`` (a dict kept up to date) holds what the headers of a
-    folder's files said, by the undecoded elements that said it: a series' slices mostly store theirs alike.
+    it; else ``None``: pydicom decodes them.
 
     Plainly means an uncompressed little endian transfer syntax read as its file meta header says (on a little
     endian machine); one grey sample of 8, 16 or 32 bits (BitsStored 1 to BitsAllocated, PixelRepresentation 0
@@ -334,14 +330,7 @@ def _plain_pixels(ds, position, element, modules=None):
     byte more, an odd length's padding).
     Anything else, odd or damaged, keeps pydicom's reading and its messages.
     """
-    raws = tuple(_raw_key(ds.get_item(tag)) for tag in PIXEL_MODULE)
-    key = None if any(raw is None and tag in ds for raw, tag in zip(raws, PIXEL_MODULE, strict=True)) else \
-        (str(ds.file_meta.get("TransferSyntaxUID")), tuple(ds.original_encoding), raws)
-    module = modules.get(key) if modules is not None and key is not None else None
-    if module is None:
-        module = _pixel_module(ds)
-        if modules is not None and key is not None:
-            modules[key] = module
+    module = _pixel_module(ds)
     if not module:
         return None
     implicit, rows, columns, allocated, stored, signed = module
