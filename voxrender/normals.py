@@ -44,7 +44,7 @@ GAUSSIAN = _stencil(2, *GAUSSIAN_1D)
 # values at a time from the file: through the mapping, the pages they touch would stay in memory (gigabytes).
 RESIDENT_BYTES = 1 << 28
 FILE_BLOCK = 1 << 22
-THREAD_VOXELS = 1 << 16    # the band voxels whose gradient is worth a thread of their own
+THREAD_VOXELS = 1 << 16    # the voxels (or normals) worth a thread of their own
 
 
 def octahedral_encode(normals):
@@ -54,9 +54,11 @@ def octahedral_encode(normals):
     [[0.0, 0.6, -0.8]]
     """
     n = np.asarray(normals, dtype=np.float64)
-    parts = max(1, min(os.cpu_count() or 1, len(n) // THREAD_VOXELS))
-    if parts > 1:                                   # parts on threads: each vector's code is its own
-        return np.concatenate(_on_threads(octahedral_encode, np.array_split(n, parts)))
+    return np.concatenate(_in_parts(lambda a, b: _octahedral(n[a:b]), len(n)))
+
+
+def _octahedral(n):
+    """:func:`octahedral_encode` of float64 vectors ``n``, in this thread."""
     n = n / np.maximum(np.abs(n).sum(axis=1, keepdims=True), 1e-30)
     x, y, z = n.T
     folded_x = np.where(z < 0, (1 - np.abs(y)) * np.where(x >= 0, 1, -1), x)
@@ -379,14 +381,21 @@ def _gradient_on_grid(grid, voxels, smooth, derive):
     # whole numbers with whole weights (a Sobel kernel on integers of 16 bits or fewer) are summed in int32:
     # exactly, as float64 sums them, at half the memory traffic
     kind = np.int32 if radius == 1 and _exact_in_float32(grid) else np.float64
-    # parts of the band on threads (NumPy lets go of Python's lock): each voxel's sum is its own, the same
-    parts = max(1, min(os.cpu_count() or 1, len(x) // THREAD_VOXELS))
-    bounds = np.linspace(0, len(x), parts + 1).astype(np.int64)
-    found = _on_threads(lambda ab: _separable_sums(grid, z[ab[0]:ab[1]], y[ab[0]:ab[1]], x[ab[0]:ab[1]], smooth,
-                                                   derive, kind), zip(bounds[:-1], bounds[1:], strict=True))
-    found = np.concatenate(found, axis=1)
+    found = np.concatenate(_in_parts(lambda a, b: _separable_sums(grid, z[a:b], y[a:b], x[a:b], smooth, derive,
+                                                                  kind), len(x)), axis=1)
     gradient[inner] = found.T
     return gradient
+
+
+def _in_parts(work, count):
+    """``[work(a, b), ...]`` over consecutive parts ``a:b`` of ``count`` items: on threads (NumPy lets go of
+    Python's lock) when there are enough items for more than one, each item's result being its own, so the same.
+    """
+    parts = max(1, min(os.cpu_count() or 1, count // THREAD_VOXELS))
+    if parts == 1:
+        return [work(0, count)]
+    bounds = np.linspace(0, count, parts + 1).astype(np.int64)
+    return _on_threads(lambda ab: work(*ab), zip(bounds[:-1], bounds[1:], strict=True))
 
 
 def _separable_sums(grid, z, y, x, smooth, derive, kind):
