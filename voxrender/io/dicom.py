@@ -8,6 +8,7 @@ groups, RT dose grids by GridFrameOffsetVector.
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import os
 import struct
@@ -47,8 +48,6 @@ NOT_IMAGES = ("SR", "PR", "KO", "RTPLAN", "RTRECORD", "REG", "DOC")
 HEADER_KEYWORDS = ("Rows", "Columns", "Modality", "SOPClassUID", "SeriesInstanceUID", "SeriesDescription",
                    "FrameOfReferenceUID", "NumberOfFrames", "ImagePositionPatient", "ImageOrientationPatient",
                    "InstanceNumber", "PixelSpacing", "SliceThickness", "SpacingBetweenSlices")
-HEADER_TAGS = (0x00280010, 0x00280011, 0x00080060, 0x00080016, 0x0020000E, 0x0008103E, 0x00200052, 0x00280008,
-               0x00200032, 0x00200037, 0x00200013, 0x00280030, 0x00180050, 0x00180088)      # theirs, in their order
 # The transfer syntaxes whose pixel data this reader takes straight from the file (uncompressed, little endian),
 # with whether their elements are implicit VR; any other is decoded by pydicom.
 PLAIN_SYNTAXES = {"1.2.840.10008.1.2": True,            # Implicit VR Little Endian
@@ -212,6 +211,14 @@ def _series_files(folder, progress, series):
     return next(iter(groups.values())), aside, plain
 
 
+@functools.cache
+def _header_tags():
+    """The tags of :data:`HEADER_KEYWORDS`, from pydicom's dictionary once (a keyword is looked up on each ask)."""
+    from pydicom.datadict import tag_for_keyword
+
+    return tuple(tag_for_keyword(keyword) for keyword in HEADER_KEYWORDS)
+
+
 def _decode_header(ds, decoded):
     """Decode the values of :data:`HEADER_KEYWORDS` in the header ``ds``: pydicom decodes a value when first asked,
     and a damaged one fails here, naming its file.  A value stored as the one of an earlier file of the folder
@@ -219,7 +226,7 @@ def _decode_header(ds, decoded):
     series' slices mostly share their orientation, spacing, UIDs ...).
     """
     charset = _charset(ds)
-    for tag in HEADER_TAGS:
+    for tag in _header_tags():
         raw = ds.get_item(tag)
         if raw is None:
             continue
