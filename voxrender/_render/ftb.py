@@ -270,7 +270,6 @@ def _merge_batch(lo, hi, line, key_first, key_last, stride):
     scan_start, scan_end, right_of_span = on_lo[:n], on_lo[n:2 * n], on_lo[2 * n:]
     on_hi = np.searchsorted(hi, np.concatenate([before + 1, key_first, key_last, paint_lo]), "left")
     pointer, first_reaching, last_reaching, paint_from = on_hi[:n], on_hi[n:2 * n], on_hi[2 * n:3 * n], on_hi[3 * n:]
-    full = scan_start == scan_end
     walked = pointer < scan_end
     passed = np.where(walked, np.clip(first_reaching, pointer, scan_end) - pointer, 0)
     finish = np.maximum(pointer, last_reaching)
@@ -296,7 +295,33 @@ def _merge_batch(lo, hi, line, key_first, key_last, stride):
     k, span = ranges(paint_from, pieces, owners=True)
     piece_lo, piece_hi = np.maximum(lo[k], paint_lo[span]), np.minimum(hi[k], key_last[span])
     lo, hi = _remove_painted(lo, hi, k, piece_lo, piece_hi)
-    return counts, full, (span, piece_lo, piece_hi), lo, hi
+    return counts, scan_end - scan_start, (span, piece_lo, piece_hi), lo, hi
+
+
+def _count_peak(stats, start, lo, call, line, span_slab, unlit_before, stride):
+    """Raise ``stats["unlit_segments_peak"]`` to the most unlit segments the screen held after any slab.
+
+    The merges ran by rank, not slab by slab, so the counts after each slab are summed from the calls: a call
+    changes its scanline's count from what the scanline held before it to what it held before its next call
+    (the scanline's count at the end after its last), and the screen held ``start`` segments before these slabs.
+    """
+    if not len(call):
+        return
+    calls = int(call.max()) + 1
+    before = np.zeros(calls, np.int64)
+    before[call] = unlit_before
+    call_line = np.zeros(calls, np.int64)
+    call_line[call] = line
+    call_slab = np.zeros(calls, np.int64)
+    call_slab[call] = span_slab
+    # calls are numbered by scanline and then in reading order
+    last_of_line = np.concatenate([call_line[1:] != call_line[:-1], [True]])
+    after = np.concatenate([before[1:], [0]])
+    ends = call_line[last_of_line]
+    after[last_of_line] = np.searchsorted(lo, (ends + 1) * stride) - np.searchsorted(lo, ends * stride)
+    change = np.zeros(int(call_slab.max()) + 1, np.int64)
+    np.add.at(change, call_slab, after - before)
+    stats["unlit_segments_peak"] = max(stats["unlit_segments_peak"], start + int(np.cumsum(change).max()))
 
 
 def render_ftb(segments, view, progress=None, clip=None, items=False):
@@ -382,37 +407,37 @@ def _render_slabs(segments, plan, clip, outer, screen, stats, cases, depth, owne
     keep = span_first <= span_last
     line, run, span_first, span_last = line[keep], run[keep], span_first[keep], span_last[keep]
 
-    # A MERGE call is one (row, scanline); its rank is how many rows of the same slab reached that
-    # scanline before it.  Calls of one rank touch distinct scanlines, so they run together.
-    # The spans come in run order, which is (slab, row, x) order: sorted stably by (slab, line), they are
-    # in (slab, line, row, run) order.
-    order = _stable_order(slab[run], line)
+    # A MERGE call is one (row, scanline); its rank is how many rows reached that scanline before it, in
+    # these slabs.  The merges of one scanline depend on each other only, in the order the rows are read, so
+    # calls of one rank (distinct scanlines, of any slab) run together: as many batches as the busiest
+    # scanline has calls, not the sum over slabs of each slab's busiest.
+    # The spans come in run order, which is (slab, row, x) order: sorted stably by line, they are in
+    # (line, slab, row, run) order.
+    order = np.argsort(line, kind="stable")
     line, run, span_first, span_last = line[order], run[order], span_first[order], span_last[order]
-    call_start = np.concatenate([[True], (line[1:] != line[:-1]) | (row[run][1:] != row[run][:-1])])
+    span_row = row[run]
+    line_start = np.concatenate([[True], line[1:] != line[:-1]])
+    call_start = line_start | np.concatenate([[False], span_row[1:] != span_row[:-1]])
     call = np.cumsum(call_start) - 1
-    group_start = np.concatenate([[True], (line[1:] != line[:-1]) | (slab[run][1:] != slab[run][:-1])])
-    first_call_of_group = np.maximum.accumulate(np.where(group_start, call, 0))
-    rank = call - first_call_of_group
-    order = _stable_order(slab[run], rank, line, span_first)      # ties (within a call) stay in run order
-    line, run, span_first, span_last, call = (a[order] for a in (line, run, span_first, span_last, call))
-    step_key = slab[run] * (int(rank.max()) + 1 if len(rank) else 1) + rank[order]
-    step_bounds = np.flatnonzero(np.concatenate([[True], step_key[1:] != step_key[:-1], [True]]))
-    span_slab = slab[run]
+    rank = call - np.maximum.accumulate(np.where(line_start, call, 0))
+    order = _stable_order(rank, line, span_first)      # ties (within a call) stay in run order
+    line, run, span_first, span_last, call, rank = (a[order] for a in (line, run, span_first, span_last, call, rank))
+    step_bounds = np.flatnonzero(np.concatenate([[True], rank[1:] != rank[:-1], [True]]))
 
     key_first, key_last = line * stride + span_first + 1, line * stride + span_last + 1
-    span_full = np.zeros(len(line), bool)
-    slab_ends = set((np.flatnonzero(np.concatenate([span_slab[1:] != span_slab[:-1], [True]])) + 1).tolist())
+    unlit_before = np.zeros(len(line), np.int64)      # the unlit segments on the span's scanline before its call
+    unlit_start = len(lo)
     painted_spans, painted_lo, painted_hi = [], [], []
     for s in range(len(step_bounds) - 1):
         a, b = step_bounds[s], step_bounds[s + 1]
-        counts, span_full[a:b], (span, piece_lo, piece_hi), lo, hi = _merge_batch(
+        counts, unlit_before[a:b], (span, piece_lo, piece_hi), lo, hi = _merge_batch(
             lo, hi, line[a:b], key_first[a:b], key_last[a:b], stride)
         cases += counts
         painted_spans.append(span + a)
         painted_lo.append(piece_lo)
         painted_hi.append(piece_hi)
-        if b in slab_ends:
-            stats["unlit_segments_peak"] = max(stats["unlit_segments_peak"], len(lo))
+    span_full = unlit_before == 0
+    _count_peak(stats, unlit_start, lo, call, line, slab[run], unlit_before, stride)
 
     # Every lit pixel was painted once; its depth is where its ray enters the box of the span that lit it.
     lit_runs = np.zeros(0, np.int64)
