@@ -34,6 +34,7 @@ from pathlib import Path
 import click
 import numpy as np
 
+from benchmarks import compile_bytecode
 from benchmarks.studies import DEFAULT_DATA, HERE, VHF_THRESHOLD, write_manifest, write_studies
 
 TIMEOUT = 600            # seconds a run may take before it counts as failed
@@ -189,6 +190,7 @@ def main(ref, repeat, data, study_count, big):
                 if not Path(where).resolve().is_relative_to(Path(tree).resolve()):
                     raise SystemExit(f"error: the {side} side imports voxrender from {where}, not from {tree}")
                 click.echo(f"{side}: voxrender from {where}")
+                compile_bytecode(tree)    # both start as an installed package does
             manifest = None
             if study_count:
                 manifest = write_manifest(scratch / "manifest.csv", write_studies(data=data)[:study_count])

@@ -38,6 +38,8 @@ from pathlib import Path
 import click
 import numpy as np
 
+from benchmarks import compile_bytecode
+
 STUDIES_VERSION = 2                  # bump when the studies written change: the cache is rewritten
 VHF_THRESHOLD = 300.0                # HU, bone (as benchmarks.bench)
 HEADSQ_THRESHOLD = 1150.0            # headsq's stored values, bone (../shared/data/README.md)
@@ -478,6 +480,7 @@ def bench_whole_command(data, repeat, size=SIZE):
 def run(data, repeat, count=24, root=None):
     """The section: the studies (written once), their batch beside VTK, and the whole command beside VTK."""
     studies = write_studies(root, data, count)
+    compile_bytecode(HERE)            # voxrender's fresh processes start as an installed package does, VTK's too
     return {"when": time.strftime("%Y-%m-%d %H:%M"), "load": os.getloadavg()[0],
             "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}",
             "commit": _commit(), "studies": bench_studies(studies, repeat),
