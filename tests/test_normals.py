@@ -124,6 +124,27 @@ def test_the_separable_pass_on_a_grid_is_the_stencil(binary):
     assert np.degrees(np.arccos(np.clip(cosine, -1, 1))).max() < 0.05      # the same, up to quantisation
 
 
+@pytest.mark.parametrize("spread", [1, 40])
+def test_each_point_of_overlapping_stencils_is_sampled_once_with_its_own_value(spread):
+    # a band's stencils share most of their points: each is sampled once (spread 1), unless the centres lie too
+    # thinly in their box to mark it (spread 40: sampled point by point); the values are the per-point ones
+    rng = np.random.default_rng(3)
+    centres = rng.integers(-1, 12, (500, 3)) * spread
+    offsets, _ = normals.SOBEL
+    asked = []
+
+    def sample(points):
+        asked.append(len(points))
+        return np.sin(points @ np.array([0.3, 1.7, 2.9]))
+
+    values = normals._stencil_samples(sample, centres, offsets)
+    alone = np.sin((centres[:, None, :] + offsets[None]) @ np.array([0.3, 1.7, 2.9]))
+    assert values.shape == (500, 27) and np.array_equal(values, alone)
+    distinct = len(np.unique((centres[:, None, :] + offsets[None]).reshape(-1, 3), axis=0))
+    assert asked == [distinct if spread == 1 else 500 * 27]
+    assert spread > 1 or distinct < 500 * 27 / 3                # worth it: most points are shared
+
+
 # a binary search of the index (few points, or a small object in a vast volume); its bitmap (many points)
 @pytest.mark.parametrize("count, vast", [(6, False), (300, False), (300, True)])
 def test_normals_at_points_are_the_trilinear_blend_of_the_corners_present(count, vast):
