@@ -121,3 +121,41 @@ def test_production_equals_literal_off_centre(ball):
         stats.pop("black_seconds", None)
         assert stats == literal_stats
         assert_same(depth, literal)
+
+
+def test_merges_sorted_by_walk_order_when_the_runs_are_not(monkeypatch):
+    """Spans are merged in walk order within a call; when their run order is not (checked), they are sorted by it,
+    which gives the same image and counts."""
+    from voxrender._render import ftb
+
+    rng = np.random.default_rng(3)
+    for _ in range(6):
+        encoded = segments.encode(rng.random((8, 10, 14)) < 0.4)
+        view = View(*rng.uniform(-180, 180, 2), 0, (26, 28), float(rng.uniform(0.5, 3)))
+        fast, fast_stats = render_ftb(encoded, view)
+        with monkeypatch.context() as patch:
+            patch.setattr(ftb, "_in_walk_order", lambda *_: False)
+            sorted_, sorted_stats = render_ftb(encoded, view)
+        assert sorted_stats == fast_stats
+        assert np.array_equal(sorted_, fast)
+
+
+def test_merges_batched_by_rank_over_all_slices(monkeypatch):
+    """Two blobs on different scanlines of different slices: the merges of both run in the same batches, as many
+    as the busiest scanline has calls, not one set of batches per slice."""
+    from voxrender._render import ftb
+
+    mask = np.zeros((4, 12, 6), bool)
+    mask[0, 1:3, 1:5] = True            # front slice, rows 1-2
+    mask[3, 8:10, 1:5] = True           # back slice, rows 8-9
+    batches, layout = [], ftb._merge_layout
+
+    def counted(*args):
+        result = layout(*args)
+        batches.append(len(result[0]) - 1)      # its first item: the bounds of the batches
+        return result
+
+    monkeypatch.setattr(ftb, "_merge_layout", counted)
+    depth, stats = render_ftb(segments.encode(mask), View(0, 0, 0, (16, 16), 1.0))
+    assert stats["merge_calls"] == 4 and np.isfinite(depth).sum() == 16
+    assert batches == [1]

@@ -19,9 +19,10 @@ so the depth image is the view contract's.
 Two implementations: :mod:`.literal.ftb` walks the linked lists case by case
 with a geometry of its own (the oracle), and :func:`render_ftb` runs the same
 merges for many scanlines at once: every merge of one row into one scanline is
-independent of the other scanlines (the paper's section 7), so the merges of a
-slice are batched by their rank on their scanline, and each batch is one set of
-sorted-interval array operations on all unlit segments.  Both give the same
+independent of the other scanlines (the paper's section 7), so the merges are
+batched by their rank on their scanline (over all the slabs read at once), and
+each batch is a few searches and one split of all unlit segments; the MERGE
+cases are counted from the searches after the last batch.  Both give the same
 depth image and the same statistics, MERGE cases included.
 """
 
@@ -215,87 +216,159 @@ def _slab_groups(segments, plan):
     return np.unique(np.concatenate([[0], cuts + 1, [len(runs)]]).clip(0, len(runs)))
 
 
-def _remove_painted(lo, hi, k, piece_lo, piece_hi):
-    """The unlit segments ``[lo, hi]`` once the pieces ``[piece_lo, piece_hi]`` of segments ``k`` are lit.
+def _small(keys):
+    """``keys`` (whole numbers from 0) as int16 when they fit, which NumPy sorts stably by radix, in linear time."""
+    return keys.astype(np.int16) if len(keys) and 0 <= keys.min() and keys.max() < 1 << 15 else keys
 
-    ``k`` is sorted and the pieces of one segment are sorted and disjoint; a segment with
-    ``m`` pieces leaves at most ``m + 1`` (DELETE, CHANGE, SPLIT).
 
-    >>> _remove_painted(np.array([0, 10, 20]), np.array([8, 12, 22]), np.array([0, 0, 1]),
-    ...                 np.array([2, 5, 10]), np.array([3, 5, 11]))
-    (array([ 0,  4,  6, 12, 20]), array([ 1,  4,  8, 12, 22]))
+def _merge_order(line, span_row, span_first):
+    """The order the spans are merged in, each span's call (numbered by scanline, then in reading order) and
+    the call's rank: how many rows reached its scanline before it.
+
+    A MERGE call is one (row, scanline).  The merges of one scanline depend on each other only, in the order
+    the rows are read, so the calls of one rank (distinct scanlines, of any slab) run together: as many
+    batches as the busiest scanline has calls.  The spans come in run order, which is (slab, row, x) order, and
+    leave in (rank, scanline, walk order) order, ties (within a call) in run order.
     """
-    if not len(k):
-        return lo, hi
-    opens = np.concatenate([[True], k[1:] != k[:-1]])
-    closes = np.concatenate([k[1:] != k[:-1], [True]])
-    gap_lo = np.where(opens, lo[k], np.concatenate([[0], piece_hi[:-1]]) + 1)
-    gap_hi = piece_lo - 1
-    slot = np.arange(len(k)) + np.cumsum(closes) - closes
-    new_lo = np.empty(len(k) + int(closes.sum()), lo.dtype)
-    new_hi = np.empty_like(new_lo)
-    new_lo[slot], new_hi[slot] = gap_lo, gap_hi
-    new_lo[slot[closes] + 1], new_hi[slot[closes] + 1] = piece_hi[closes] + 1, hi[k[closes]]
-    keep = new_lo <= new_hi
-    alive = np.ones(len(lo), bool)
-    alive[k] = False
-    merged_lo = np.concatenate([lo[alive], new_lo[keep]])
-    order = np.argsort(merged_lo, kind="stable")
-    return merged_lo[order], np.concatenate([hi[alive], new_hi[keep]])[order]
+    if not len(line):
+        return (np.zeros(0, np.int64),) * 3
+    order = np.argsort(_small(line), kind="stable")          # (line, slab, row, run) order
+    line, span_row, span_first = line[order], span_row[order], span_first[order]
+    line_start = np.concatenate([[True], line[1:] != line[:-1]])
+    call_start = line_start | np.concatenate([[False], span_row[1:] != span_row[:-1]])
+    call = np.cumsum(call_start) - 1
+    rank = call - np.maximum.accumulate(np.where(line_start, call, 0))
+    if _in_walk_order(span_first, call_start):
+        then = np.argsort(_small(rank), kind="stable")
+    else:
+        then = _stable_order(rank, line, span_first)
+    return order[then], call[then], rank[then]
 
 
-def _merge_batch(lo, hi, line, key_first, key_last, stride):
-    """MERGE, for many scanlines at once, of one row's spans per scanline with the unlit segments.
+def _in_walk_order(span_first, call_start):
+    """Whether every call's spans, in run order, start in walk order: a row's runs are read in walk order, so
+    their spans on a scanline come sorted (ordering by rank alone then keeps each call in walk order), unless
+    rounding puts a span a column before the one read before it (a view with ``R00`` next to nothing).
+    """
+    return not np.any((span_first[1:] < span_first[:-1]) & ~call_start[1:])
 
-    ``lo, hi`` are the unlit segments of all scanlines as sorted keys ``line * stride + x + 1``;
-    ``line, key_first, key_last`` are the object spans (as keys), sorted by scanline and then in walk order,
-    each scanline's spans being one MERGE call.  Returns the counts of cases 1 to 8 (index 0
-    unused), which spans met a full scanline (no MERGE), the painted pieces
-    ``(span, key_lo, key_hi)`` and the new unlit segments.
 
-    The two-pointer walk of Fig. 6 is evaluated in closed form: with ``M`` the largest end
-    of the earlier spans of the same call, span ``i`` starts at the first unlit segment
-    that ends after ``M``, passes (case 8) those that end before its start, covers (case 6,
-    or 7 for the first when it starts inside it) those that end before its end, and
-    finishes (cases 1 to 5) on the next one; a SPLIT (case 3) leaves one extra case 8 for
-    the following span.  Painted pixels are the span minus ``[.., M]``, intersected with
-    the unlit segments.
+def _merge_layout(line, rank, key_first, key_last, stride):
+    """What the batches of :func:`_merge_all` search with, laid out batch by batch.
+
+    The spans are in merge order; a batch is one rank.  Within a call (one scanline of one batch) ``M``, the
+    largest end of the call's earlier spans (its scanline's start before the first), depends on the spans
+    only, and so do the keys searched for: per batch, in the unlit starts ``lo`` the spans' reach (the key
+    after their end; their scanline's start when ``M`` covers them, so that they paint nothing) and their
+    first keys, then the calls' scanline starts and ends; in the unlit ends ``hi`` the spans' first and last
+    keys and the key after the last.
     """
     n = len(line)
     base = line * stride
-    running = np.maximum.accumulate(key_last)
-    before = np.maximum(base, np.concatenate([[-1], running[:-1]]))  # key of M (base means none yet)
+    step_start = np.concatenate([[True], rank[1:] != rank[:-1]])
+    first = step_start | np.concatenate([[True], line[1:] != line[:-1]])       # a call's first span
+    ordinal = np.cumsum(first) - 1                                             # the calls in merge order
+    lift = ordinal * (int(key_last.max()) + 1)             # a running maximum per call, from one over all spans
+    before = np.concatenate([[0], np.maximum.accumulate(key_last + lift)[:-1]]) - lift
+    before[first] = base[first]
     paint_lo = np.maximum(key_first, before + 1)
-    on_lo = np.searchsorted(lo, np.concatenate([base, base + stride, key_last + 1]), "left")
-    scan_start, scan_end, right_of_span = on_lo[:n], on_lo[n:2 * n], on_lo[2 * n:]
-    on_hi = np.searchsorted(hi, np.concatenate([before + 1, key_first, key_last, paint_lo]), "left")
-    pointer, first_reaching, last_reaching, paint_from = on_hi[:n], on_hi[n:2 * n], on_hi[2 * n:3 * n], on_hi[3 * n:]
+    reach = np.where(paint_lo <= key_last, key_last + 1, base + 1)
+    bounds = np.flatnonzero(np.concatenate([step_start, [True]]))
+    firsts = np.flatnonzero(first)
+    call_bounds = np.concatenate([ordinal[bounds[:-1]], [len(firsts)]])
+    batch = np.cumsum(step_start) - 1
+    span_at, call_at = bounds[batch], call_bounds[batch[firsts]]
+    span_local, call_local = np.arange(n) - span_at, np.arange(len(firsts)) - call_at
+    spans_in, calls_in = (bounds[1:] - bounds[:-1])[batch], (call_bounds[1:] - call_bounds[:-1])[batch[firsts]]
+    lo_at = 2 * (span_at + call_at[ordinal])
+    lo_places = (lo_at + span_local, lo_at + spans_in + span_local,
+                 2 * (span_at[firsts] + call_at) + 2 * spans_in[firsts] + call_local)
+    lo_places += (lo_places[2] + calls_in,)
+    lo_keys = np.empty(2 * (n + len(firsts)), np.int64)
+    for place, keys in zip(lo_places, (reach, key_first, base[firsts], base[firsts] + stride), strict=True):
+        lo_keys[place] = keys
+    hi_places = tuple(3 * span_at + spans_in * part + span_local for part in range(3))
+    hi_keys = np.empty(3 * n, np.int64)
+    for place, keys in zip(hi_places, (key_first, key_last, key_last + 1), strict=True):
+        hi_keys[place] = keys
+    return (bounds, call_bounds, firsts - span_at[firsts], ordinal, before, paint_lo, lo_keys, lo_places, hi_keys,
+            hi_places)
+
+
+def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
+    """MERGE, rank by rank, every call's spans with the unlit segments of its scanline.
+
+    ``lo, hi`` are the unlit segments of all scanlines as sorted keys ``line * stride + x + 1`` (two segments
+    are at least one key apart); ``line, key_first, key_last`` are the object spans (as keys) in merge order
+    (:func:`_merge_order`), one batch per ``rank``: within a batch, sorted by scanline and then in walk order,
+    each scanline's spans being one MERGE call.  Returns the counts of cases 1 to 8 (index 0 unused), how many
+    unlit segments each span's scanline held before its call (none: a full scanline, no MERGE), the painted
+    pieces ``(span, key_lo, key_hi)`` and the unlit segments left.
+
+    A batch only searches the unlit segments and paints: with ``M`` the largest end of the earlier spans of
+    the same call, span ``i`` paints its part after ``M`` on the unlit segments that reach it, and the painted
+    pieces split the segments they lie in (each segment's starts and ends, sorted with the pieces' ends and
+    starts, pair up, empty pairs dropped).  The two-pointer walk of Fig. 6 is then counted from the searches
+    in closed form, for all batches at once: span ``i`` starts at the first unlit segment that ends after
+    ``M``, passes (case 8) those that end before its start, covers (case 6, or 7 for the first when it starts
+    inside it) those that end before its end, and finishes (cases 1 to 5) on the next one; a SPLIT (case 3)
+    leaves one extra case 8 for the following span.
+    """
+    if not len(line):
+        return np.zeros(9, np.int64), np.zeros(0, np.int64), None, lo, hi
+    (bounds, call_bounds, firsts, ordinal, before, paint_lo, lo_keys, lo_places, hi_keys,
+     hi_places) = _merge_layout(line, rank, key_first, key_last, stride)
+    found_lo, found_hi, pointers, spans, pieces_lo, pieces_hi = [], [], [], [], [], []
+    for s in range(len(bounds) - 1):
+        a, b, ca, cb = bounds[s], bounds[s + 1], call_bounds[s], call_bounds[s + 1]
+        n = b - a
+        on_lo = np.searchsorted(lo, lo_keys[2 * (a + ca):2 * (b + cb)])
+        on_hi = np.searchsorted(hi, hi_keys[3 * a:3 * b])
+        # the first unlit segment ending after M: after M's own, or the scanline's first for a call's first span
+        pointer = np.concatenate([[0], np.maximum.accumulate(on_hi[2 * n:])[:-1]])
+        pointer[firsts[ca:cb]] = on_lo[2 * n:2 * n + cb - ca]
+        paint_from = np.maximum(on_hi[:n], pointer)
+        count = np.maximum(on_lo[:n] - paint_from, 0)              # unlit segments the span paints on
+        found_lo.append(on_lo)
+        found_hi.append(on_hi)
+        pointers.append(pointer)
+        ends = np.cumsum(count)
+        if not ends[-1]:
+            continue
+        span = np.repeat(np.arange(a, b), count)
+        k = np.repeat(paint_from - ends + count, count) + np.arange(ends[-1])
+        piece_lo, piece_hi = np.maximum(lo[k], paint_lo[span]), np.minimum(hi[k], key_last[span])
+        lo = np.sort(np.concatenate([lo, piece_hi + 1]), kind="stable")
+        hi = np.sort(np.concatenate([hi, piece_lo - 1]), kind="stable")
+        left = lo <= hi
+        lo, hi = lo[left], hi[left]
+        spans.append(span)
+        pieces_lo.append(piece_lo)
+        pieces_hi.append(piece_hi)
+
+    found_lo, found_hi, pointer = np.concatenate(found_lo), np.concatenate(found_hi), np.concatenate(pointers)
+    reach, starts_before = found_lo[lo_places[0]], found_lo[lo_places[1]]  # unlit segments starting <= end, < first
+    scan_start, scan_end = found_lo[lo_places[2]][ordinal], found_lo[lo_places[3]][ordinal]
+    first_reaching, last_reaching, last_or_before = (found_hi[place] for place in hi_places)
     walked = pointer < scan_end
-    passed = np.where(walked, np.clip(first_reaching, pointer, scan_end) - pointer, 0)
+    passed_to = np.minimum(np.maximum(first_reaching, pointer), scan_end)
+    passed = np.where(walked, passed_to - pointer, 0)
     finish = np.maximum(pointer, last_reaching)
-    covered = np.where(walked, np.minimum(finish, scan_end) - (pointer + passed), 0)
-    top = max(len(lo) - 1, 0)
-    lo_padded = lo if len(lo) else np.zeros(1, np.int64)
-    hi_padded = hi if len(hi) else np.zeros(1, np.int64)
-    case7 = (covered > 0) & (key_first > np.maximum(lo_padded[np.minimum(pointer + passed, top)], before + 1))
-    at = np.minimum(finish, top)
-    low = np.maximum(lo_padded[at], before + 1)
-    inside = key_first > low
-    ends_at = key_last == hi_padded[at]
-    case = np.where(key_last < low, 1, 2 + inside + 2 * ends_at)
+    covered = np.where(walked, np.minimum(finish, scan_end) - passed_to, 0)
+    after_m = key_first > before + 1
+    case7 = (covered > 0) & (passed_to < starts_before) & after_m     # it starts inside the first it covers
+    # on the segment it finishes on: ends before it (1), or starts inside it (+1), ends at its end (+2)
+    inside = after_m & (finish < starts_before)
+    ends_at = finish < last_or_before
+    case = np.where((key_last <= before) | (finish >= reach), 1, 2 + inside + 2 * ends_at)
     case = np.where(walked & (finish < scan_end), case, 0)
     counts = np.bincount(case, minlength=9)
-    split_before = np.concatenate([[False], (case[:-1] == 3) & (line[1:] == line[:-1])]) & walked
+    split_before = np.concatenate([[False], (case[:-1] == 3) & (ordinal[1:] == ordinal[:-1])]) & walked
     counts[8] += int(passed.sum() + split_before.sum())
     counts[7] += int(case7.sum())
     counts[6] += int(covered.sum() - case7.sum())
-    # Painting: the part of each span not already painted by earlier spans of its call, on unlit pixels.
-    todo = paint_lo <= key_last
-    pieces = np.where(todo, np.maximum(right_of_span - paint_from, 0), 0)
-    k, span = ranges(paint_from, pieces, owners=True)
-    piece_lo, piece_hi = np.maximum(lo[k], paint_lo[span]), np.minimum(hi[k], key_last[span])
-    lo, hi = _remove_painted(lo, hi, k, piece_lo, piece_hi)
-    return counts, scan_end - scan_start, (span, piece_lo, piece_hi), lo, hi
+    painted = (np.concatenate(spans), np.concatenate(pieces_lo), np.concatenate(pieces_hi)) if spans else None
+    return counts, scan_end - scan_start, painted, lo, hi
 
 
 def _count_peak(stats, start, lo, call, line, span_slab, unlit_before, stride):
@@ -407,44 +480,21 @@ def _render_slabs(segments, plan, clip, outer, screen, stats, cases, depth, owne
     keep = span_first <= span_last
     line, run, span_first, span_last = line[keep], run[keep], span_first[keep], span_last[keep]
 
-    # A MERGE call is one (row, scanline); its rank is how many rows reached that scanline before it, in
-    # these slabs.  The merges of one scanline depend on each other only, in the order the rows are read, so
-    # calls of one rank (distinct scanlines, of any slab) run together: as many batches as the busiest
-    # scanline has calls, not the sum over slabs of each slab's busiest.
-    # The spans come in run order, which is (slab, row, x) order: sorted stably by line, they are in
-    # (line, slab, row, run) order.
-    order = np.argsort(line, kind="stable")
+    order, call, rank = _merge_order(line, row[run], span_first)
     line, run, span_first, span_last = line[order], run[order], span_first[order], span_last[order]
-    span_row = row[run]
-    line_start = np.concatenate([[True], line[1:] != line[:-1]])
-    call_start = line_start | np.concatenate([[False], span_row[1:] != span_row[:-1]])
-    call = np.cumsum(call_start) - 1
-    rank = call - np.maximum.accumulate(np.where(line_start, call, 0))
-    order = _stable_order(rank, line, span_first)      # ties (within a call) stay in run order
-    line, run, span_first, span_last, call, rank = (a[order] for a in (line, run, span_first, span_last, call, rank))
-    step_bounds = np.flatnonzero(np.concatenate([[True], rank[1:] != rank[:-1], [True]]))
-
     key_first, key_last = line * stride + span_first + 1, line * stride + span_last + 1
-    unlit_before = np.zeros(len(line), np.int64)      # the unlit segments on the span's scanline before its call
     unlit_start = len(lo)
-    painted_spans, painted_lo, painted_hi = [], [], []
-    for s in range(len(step_bounds) - 1):
-        a, b = step_bounds[s], step_bounds[s + 1]
-        counts, unlit_before[a:b], (span, piece_lo, piece_hi), lo, hi = _merge_batch(
-            lo, hi, line[a:b], key_first[a:b], key_last[a:b], stride)
-        cases += counts
-        painted_spans.append(span + a)
-        painted_lo.append(piece_lo)
-        painted_hi.append(piece_hi)
+    counts, unlit_before, painted, lo, hi = _merge_all(lo, hi, line, rank, key_first, key_last, stride)
+    cases += counts
     span_full = unlit_before == 0
     _count_peak(stats, unlit_start, lo, call, line, slab[run], unlit_before, stride)
 
     # Every lit pixel was painted once; its depth is where its ray enters the box of the span that lit it.
     lit_runs = np.zeros(0, np.int64)
-    if painted_spans:
-        piece_lo, piece_hi = np.concatenate(painted_lo), np.concatenate(painted_hi)
+    if painted is not None:
+        painted_spans, piece_lo, piece_hi = painted
         keys, piece = ranges(piece_lo, piece_hi - piece_lo + 1, owners=True)
-        owner = np.concatenate(painted_spans)[piece]
+        owner = painted_spans[piece]
         pixel_line, r = line[owner], run[owner]
         walk_x = keys - pixel_line * stride - 1
         pixels = pixel_line * width + plan.column(walk_x)
