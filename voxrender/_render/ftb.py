@@ -254,45 +254,27 @@ def _in_walk_order(span_first, call_start):
 
 
 def _merge_layout(line, rank, key_first, key_last, stride):
-    """What the batches of :func:`_merge_all` search with, laid out batch by batch.
+    """What the batches of :func:`_merge_all` search with: the bounds of the batches, each span's call (numbered
+    in merge order), ``M`` and the first key it may paint, and the keys searched for, one row per kind.
 
     The spans are in merge order; a batch is one rank.  Within a call (one scanline of one batch) ``M``, the
     largest end of the call's earlier spans (its scanline's start before the first), depends on the spans
-    only, and so do the keys searched for: per batch, in the unlit starts ``lo`` the spans' reach (the key
-    after their end; their scanline's start when ``M`` covers them, so that they paint nothing) and their
-    first keys, then the calls' scanline starts and ends; in the unlit ends ``hi`` the spans' first and last
-    keys and the key after the last.
+    only, and so do the keys searched for: in the unlit starts ``lo`` the span's reach (the key after its end;
+    its scanline's start when ``M`` covers it, so that it paints nothing), its first key and its scanline's
+    end; in the unlit ends ``hi`` its first and last keys, the key after the last and its scanline's start.
     """
-    n = len(line)
     base = line * stride
     step_start = np.concatenate([[True], rank[1:] != rank[:-1]])
     first = step_start | np.concatenate([[True], line[1:] != line[:-1]])       # a call's first span
-    ordinal = np.cumsum(first) - 1                                             # the calls in merge order
-    lift = ordinal * (int(key_last.max()) + 1)             # a running maximum per call, from one over all spans
+    call = np.cumsum(first) - 1
+    lift = call * (int(key_last.max()) + 1)                # a running maximum per call, from one over all spans
     before = np.concatenate([[0], np.maximum.accumulate(key_last + lift)[:-1]]) - lift
     before[first] = base[first]
     paint_lo = np.maximum(key_first, before + 1)
     reach = np.where(paint_lo <= key_last, key_last + 1, base + 1)
-    bounds = np.flatnonzero(np.concatenate([step_start, [True]]))
-    firsts = np.flatnonzero(first)
-    call_bounds = np.concatenate([ordinal[bounds[:-1]], [len(firsts)]])
-    batch = np.cumsum(step_start) - 1
-    span_at, call_at = bounds[batch], call_bounds[batch[firsts]]
-    span_local, call_local = np.arange(n) - span_at, np.arange(len(firsts)) - call_at
-    spans_in, calls_in = (bounds[1:] - bounds[:-1])[batch], (call_bounds[1:] - call_bounds[:-1])[batch[firsts]]
-    lo_at = 2 * (span_at + call_at[ordinal])
-    lo_places = (lo_at + span_local, lo_at + spans_in + span_local,
-                 2 * (span_at[firsts] + call_at) + 2 * spans_in[firsts] + call_local)
-    lo_places += (lo_places[2] + calls_in,)
-    lo_keys = np.empty(2 * (n + len(firsts)), np.int64)
-    for place, keys in zip(lo_places, (reach, key_first, base[firsts], base[firsts] + stride), strict=True):
-        lo_keys[place] = keys
-    hi_places = tuple(3 * span_at + spans_in * part + span_local for part in range(3))
-    hi_keys = np.empty(3 * n, np.int64)
-    for place, keys in zip(hi_places, (key_first, key_last, key_last + 1), strict=True):
-        hi_keys[place] = keys
-    return (bounds, call_bounds, firsts - span_at[firsts], ordinal, before, paint_lo, lo_keys, lo_places, hi_keys,
-            hi_places)
+    lo_keys = np.stack([reach, key_first, base + stride])
+    hi_keys = np.stack([key_first, key_last, key_last + 1, base])
+    return np.flatnonzero(np.concatenate([step_start, [True]])), call, before, paint_lo, lo_keys, hi_keys
 
 
 def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
@@ -316,19 +298,15 @@ def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
     """
     if not len(line):
         return np.zeros(9, np.int64), np.zeros(0, np.int64), None, lo, hi
-    (bounds, call_bounds, firsts, ordinal, before, paint_lo, lo_keys, lo_places, hi_keys,
-     hi_places) = _merge_layout(line, rank, key_first, key_last, stride)
+    bounds, call, before, paint_lo, lo_keys, hi_keys = _merge_layout(line, rank, key_first, key_last, stride)
     found_lo, found_hi, pointers, spans, pieces_lo, pieces_hi = [], [], [], [], [], []
     for s in range(len(bounds) - 1):
-        a, b, ca, cb = bounds[s], bounds[s + 1], call_bounds[s], call_bounds[s + 1]
-        n = b - a
-        on_lo = np.searchsorted(lo, lo_keys[2 * (a + ca):2 * (b + cb)])
-        on_hi = np.searchsorted(hi, hi_keys[3 * a:3 * b])
-        # the first unlit segment ending after M: after M's own, or the scanline's first for a call's first span
-        pointer = np.concatenate([[0], np.maximum.accumulate(on_hi[2 * n:])[:-1]])
-        pointer[firsts[ca:cb]] = on_lo[2 * n:2 * n + cb - ca]
-        paint_from = np.maximum(on_hi[:n], pointer)
-        count = np.maximum(on_lo[:n] - paint_from, 0)              # unlit segments the span paints on
+        a, b = bounds[s], bounds[s + 1]
+        on_lo, on_hi = np.searchsorted(lo, lo_keys[:, a:b]), np.searchsorted(hi, hi_keys[:, a:b])
+        # the first unlit segment ending after M: the one after M's own, or the scanline's first
+        pointer = np.maximum(on_hi[3], np.concatenate([[0], np.maximum.accumulate(on_hi[2])[:-1]]))
+        paint_from = np.maximum(on_hi[0], pointer)
+        count = np.maximum(on_lo[0] - paint_from, 0)              # unlit segments the span paints on
         found_lo.append(on_lo)
         found_hi.append(on_hi)
         pointers.append(pointer)
@@ -346,10 +324,11 @@ def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
         pieces_lo.append(piece_lo)
         pieces_hi.append(piece_hi)
 
-    found_lo, found_hi, pointer = np.concatenate(found_lo), np.concatenate(found_hi), np.concatenate(pointers)
-    reach, starts_before = found_lo[lo_places[0]], found_lo[lo_places[1]]  # unlit segments starting <= end, < first
-    scan_start, scan_end = found_lo[lo_places[2]][ordinal], found_lo[lo_places[3]][ordinal]
-    first_reaching, last_reaching, last_or_before = (found_hi[place] for place in hi_places)
+    # unlit segments starting at most at the span's end (or its scanline's start), before its first key, on
+    # earlier scanlines or on its own; ending before its first key, before its last, at most at its last
+    reach, starts_before, scan_end = np.concatenate(found_lo, axis=1)
+    first_reaching, last_reaching, last_or_before, scan_start = np.concatenate(found_hi, axis=1)
+    pointer = np.concatenate(pointers)
     walked = pointer < scan_end
     passed_to = np.minimum(np.maximum(first_reaching, pointer), scan_end)
     passed = np.where(walked, passed_to - pointer, 0)
@@ -363,7 +342,7 @@ def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
     case = np.where((key_last <= before) | (finish >= reach), 1, 2 + inside + 2 * ends_at)
     case = np.where(walked & (finish < scan_end), case, 0)
     counts = np.bincount(case, minlength=9)
-    split_before = np.concatenate([[False], (case[:-1] == 3) & (ordinal[1:] == ordinal[:-1])]) & walked
+    split_before = np.concatenate([[False], (case[:-1] == 3) & (call[1:] == call[:-1])]) & walked
     counts[8] += int(passed.sum() + split_before.sum())
     counts[7] += int(case7.sum())
     counts[6] += int(covered.sum() - case7.sum())
