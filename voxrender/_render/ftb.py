@@ -268,10 +268,11 @@ def _merge_layout(line, rank, key_first, key_last, stride):
     first = step_start | np.concatenate([[True], line[1:] != line[:-1]])       # a call's first span
     call = np.cumsum(first) - 1
     lift = call * (int(key_last.max()) + 1)                # a running maximum per call, from one over all spans
-    before = np.concatenate([[0], np.maximum.accumulate(key_last + lift)[:-1]]) - lift
-    before[first] = base[first]
+    # (below zero at a call's first span, whose M is its scanline's start; arithmetic rather than np.where, whose
+    # pick by a mask costs here ten times a sum)
+    before = np.maximum(base, np.concatenate([[0], np.maximum.accumulate(key_last + lift)[:-1]]) - lift)
     paint_lo = np.maximum(key_first, before + 1)
-    reach = np.where(paint_lo <= key_last, key_last + 1, base + 1)
+    reach = base + 1 + (paint_lo <= key_last) * (key_last - base)
     lo_keys = np.stack([reach, key_first, base + stride])
     hi_keys = np.stack([key_first, key_last, key_last + 1, base])
     return np.flatnonzero(np.concatenate([step_start, [True]])), call, before, paint_lo, lo_keys, hi_keys
@@ -299,17 +300,17 @@ def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
     if not len(line):
         return np.zeros(9, np.int64), np.zeros(0, np.int64), None, lo, hi
     bounds, call, before, paint_lo, lo_keys, hi_keys = _merge_layout(line, rank, key_first, key_last, stride)
-    found_lo, found_hi, pointers, spans, pieces_lo, pieces_hi = [], [], [], [], [], []
+    found_lo, found_hi = np.empty(lo_keys.shape, np.int64), np.empty(hi_keys.shape, np.int64)
+    pointer = np.empty(len(line), np.int64)
+    spans, pieces_lo, pieces_hi = [], [], []
     for s in range(len(bounds) - 1):
         a, b = bounds[s], bounds[s + 1]
         on_lo, on_hi = np.searchsorted(lo, lo_keys[:, a:b]), np.searchsorted(hi, hi_keys[:, a:b])
         # the first unlit segment ending after M: the one after M's own, or the scanline's first
-        pointer = np.maximum(on_hi[3], np.concatenate([[0], np.maximum.accumulate(on_hi[2])[:-1]]))
-        paint_from = np.maximum(on_hi[0], pointer)
+        np.maximum(on_hi[3], np.concatenate([[0], np.maximum.accumulate(on_hi[2])[:-1]]), out=pointer[a:b])
+        paint_from = np.maximum(on_hi[0], pointer[a:b])
         count = np.maximum(on_lo[0] - paint_from, 0)              # unlit segments the span paints on
-        found_lo.append(on_lo)
-        found_hi.append(on_hi)
-        pointers.append(pointer)
+        found_lo[:, a:b], found_hi[:, a:b] = on_lo, on_hi
         ends = np.cumsum(count)
         if not ends[-1]:
             continue
@@ -326,21 +327,21 @@ def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
 
     # unlit segments starting at most at the span's end (or its scanline's start), before its first key, on
     # earlier scanlines or on its own; ending before its first key, before its last, at most at its last
-    reach, starts_before, scan_end = np.concatenate(found_lo, axis=1)
-    first_reaching, last_reaching, last_or_before, scan_start = np.concatenate(found_hi, axis=1)
-    pointer = np.concatenate(pointers)
+    reach, starts_before, scan_end = found_lo
+    first_reaching, last_reaching, last_or_before, scan_start = found_hi
+    # (none passed or covered on a scanline it does not walk: pointer >= scan_end)
     walked = pointer < scan_end
     passed_to = np.minimum(np.maximum(first_reaching, pointer), scan_end)
-    passed = np.where(walked, passed_to - pointer, 0)
+    passed = np.maximum(passed_to - pointer, 0)
     finish = np.maximum(pointer, last_reaching)
-    covered = np.where(walked, np.minimum(finish, scan_end) - passed_to, 0)
+    covered = np.minimum(finish, scan_end) - passed_to
     after_m = key_first > before + 1
     case7 = (covered > 0) & (passed_to < starts_before) & after_m     # it starts inside the first it covers
     # on the segment it finishes on: ends before it (1), or starts inside it (+1), ends at its end (+2)
     inside = after_m & (finish < starts_before)
     ends_at = finish < last_or_before
-    case = np.where((key_last <= before) | (finish >= reach), 1, 2 + inside + 2 * ends_at)
-    case = np.where(walked & (finish < scan_end), case, 0)
+    case = 1 + ((key_last > before) & (finish < reach)) * (1 + inside + 2 * ends_at)
+    case *= finish < scan_end                     # it finishes on a segment of its scanline (and so walks it)
     counts = np.bincount(case, minlength=9)
     split_before = np.concatenate([[False], (case[:-1] == 3) & (call[1:] == call[:-1])]) & walked
     counts[8] += int(passed.sum() + split_before.sum())
