@@ -202,54 +202,318 @@ def _cast(mask, band, view, connectivity, progress=None, space=None):
         rays_on = np.all(between[:, offset > 0], axis=1)
         if rays_on.any():
             twins.append((-offset, rays_on))
+    bits = _Bits(mask)
+    band_bits = _Bits(band) if connectivity == "adaptive" else None
+    clear = _clear_of_box(stepper, starts, ends, _object_box(mask)) if space is not None else None
+    r = _Rays(rays, stepper, bits, mask.shape, clear, twins)
     hit_voxel = np.full((height * width, 3), -1, np.int64)
     steps = {"26": 0, "6": 0}
     iterations = 0
-    while len(rays):
-        voxel = stepper.voxels
-        x, y, z = voxel.T
-        inside = (x >= 0) & (x < nx) & (y >= 0) & (y < ny) & (z >= 0) & (z < nz)
-        occupied = np.zeros(len(rays), bool)
-        occupied[inside] = mask[z[inside], y[inside], x[inside]]
-        for offset, rays_on in twins:
-            beside = voxel + offset
-            bx, by, bz = beside.T
-            look = rays_on & ~occupied & (bx >= 0) & (by >= 0) & (bz >= 0) & inside
-            found = np.zeros(len(rays), bool)
-            found[look] = mask[bz[look], by[look], bx[look]]
-            voxel = np.where(found[:, None], beside, voxel)
-            occupied |= found
-        hit_voxel[rays[occupied]] = voxel[occupied]
-        going = inside & ~occupied
-        if going.sum() < 0.8 * len(rays):  # drop finished rays now and then, not every step
-            keep = going
-            rays, stepper, voxel, going = rays[keep], stepper.subset(keep), voxel[keep], going[keep]
-            twins = [(offset, rays_on[keep]) for offset, rays_on in twins]
-        x, y, z = (np.where(going, c, 0) for c in voxel.T)
+    if space is not None:
+        space_flat, (_, blocks_y, blocks_x) = space.ravel(), space.shape
+        block_shift = BLOCK.bit_length() - 1
+    while r.count:
+        inside = (r.q0 <= r.lim0) & (r.q1 <= r.lim1) & (r.q2 <= r.lim2)
+        at = np.where(inside, r.index, 0)
+        occupied = bits.get(at) & inside
+        found_at = at
+        for offset, rays_on in r.twins:
+            look = np.flatnonzero(rays_on & ~occupied & inside)
+            if len(look):
+                beside = np.stack(bits.coords(at[look]), axis=1) + offset
+                look = look[np.all(beside >= 0, axis=1)]
+                near_at = at[look] + int(offset @ bits.strides)
+                found = bits.get(near_at)
+                found_at = found_at.copy() if found_at is at else found_at
+                found_at[look[found]] = near_at[found]
+                occupied[look[found]] = True
+        hit = np.flatnonzero(occupied)
+        if len(hit):
+            hit_voxel[r.ray[hit]] = np.stack(bits.coords(found_at[hit]), axis=1)
+        going = inside & ~occupied & ~r.gone
         if connectivity == "6":
-            six = np.ones(len(rays), bool)
+            six = going.copy()
         elif connectivity == "26":
-            six = np.zeros(len(rays), bool)
+            six = np.zeros(r.count, bool)
         else:
-            six = band[z, y, x]
-        six &= going
-        jumped = _jump(stepper, space, going & ~six, x, y, z, mask.shape) if space is not None else 0
-        stepping = going & ~(jumped > 0) if space is not None else going
-        taken_26, taken_6 = stepper.step(stepping, six)
-        steps["26"] += taken_26 + int(np.sum(jumped))
+            six = band_bits.get(at) & going
+        if space is not None:
+            free = going & ~six
+            x, y, z = bits.coords(at)
+            distance = space_flat[((z >> block_shift) * blocks_y + (y >> block_shift)) * blocks_x +
+                                  (x >> block_shift)]
+            near = np.where(free & (distance >= 2), BLOCK * (distance.astype(np.int64) - 1), 0)
+            far = np.where(free, r.clear + 1 - r.q0, 0)
+            left = r.end - r.q0
+            out = np.flatnonzero(np.maximum(near, far) > left)     # the whole rest of the way is empty
+            if len(out):
+                out, taken = _steps_out(r, out, left[out])
+                steps["26"] += int(taken.sum())
+                r.gone[out] = True
+                going[out] = False
+        if np.count_nonzero(going) < 0.8 * r.count:  # drop finished rays now and then, not every step
+            keep = np.flatnonzero(going)
+            r.keep(keep)
+            going, six = going[keep], six[keep]
+            if space is not None:
+                near, far, left = near[keep], far[keep], left[keep]
+        stepping = going
+        if space is not None:
+            # Past the object's box in one jump; a ray with a tie there (wary) jumps as far as its block lets it.
+            wide = np.flatnonzero(going & (far > near))
+            jumped, taken = _jump(r, wide, np.minimum(far[wide], left[wide] - 1), wary=True)
+            short = np.flatnonzero(going & (near > 0) & ~jumped)
+            moved, taken_short = _jump(r, short, np.minimum(near[short], left[short] - 1), wary=False)
+            stepping = going & ~(jumped | moved)
+            steps["26"] += taken + taken_short
+        taken_26, taken_6 = r.step(stepping, six)
+        steps["26"] += taken_26
         steps["6"] += taken_6
         iterations += 1
     return hit_voxel, steps, iterations
 
 
-def _jump(stepper, space, free, x, y, z, shape):
-    """Move the 26-mode rays ``free`` (at voxels ``x, y, z``) as far as the empty space lets them, stopping short of
-    their end voxel and inside the volume; returns the steps each took (0: it steps as usual).
+class _Bits:
+    """A :class:`Bitmap` (or a bool volume) looked up by one index per voxel, ``z << z_shift | y << y_shift | x``:
+    its rows and slices padded to powers of two, so that the index of a voxel moves by a fixed stride per step
+    along each axis and a look-up is one byte and a shift.
     """
-    distance = space[z // BLOCK, y // BLOCK, x // BLOCK]
-    room = np.where(free & (distance >= 2), BLOCK * (distance.astype(np.int64) - 1), 0)
-    room = np.minimum(room, stepper.steps_left() - 1)
-    return stepper.jump(room, within=shape[::-1])
+
+    def __init__(self, volume):
+        if not isinstance(volume, Bitmap):
+            packed = np.packbits(volume, axis=2, bitorder="little")
+            words = np.zeros(volume.shape[:2] + (-(-volume.shape[2] // 64),), np.uint64)
+            words.view(np.uint8)[:, :, :packed.shape[2]] = packed
+            volume = Bitmap(words, volume.shape)
+        nz, ny, _ = volume.shape
+        per_row = volume.words.shape[2]
+        row_words, rows = 1 << (per_row - 1).bit_length(), 1 << (ny - 1).bit_length()
+        words = volume.words
+        if (row_words, rows) != (per_row, ny):
+            words = np.zeros((nz, rows, row_words), np.uint64)
+            words[:, :ny, :per_row] = volume.words
+        self.bytes = np.ascontiguousarray(words).view(np.uint8).ravel()
+        self.y_shift = 6 + row_words.bit_length() - 1
+        self.z_shift = self.y_shift + rows.bit_length() - 1
+        self.strides = np.array([1, 1 << self.y_shift, 1 << self.z_shift], np.int64)
+
+    def get(self, at):
+        """Whether the voxels at indices ``at`` are set."""
+        return ((self.bytes[at >> 3] >> (at & 7).astype(np.uint8)) & np.uint8(1)).view(bool)
+
+    def coords(self, at):
+        """``x, y, z`` of the voxels at indices ``at``."""
+        return (at & ((1 << self.y_shift) - 1), (at >> self.y_shift) & ((1 << (self.z_shift - self.y_shift)) - 1),
+                at >> self.z_shift)
+
+
+class _Rays:
+    """The rays still going, in flat arrays: the state of :class:`voxrender.lines.Stepper` (its frame offsets
+    ``q0, q1, q2`` and midpoint errors), with the index of each ray's voxel (:class:`_Bits`) moved along with it
+    and the offsets at which it leaves the volume along each frame axis.  The steps are the stepper's, operation
+    for operation (the same errors to the bit); the stepper stays their oracle (tests/test_render_raycast.py).
+    """
+
+    NAMES = ("ray", "a", "b", "c", "off_y", "off_z", "q0", "q1", "q2", "lim0", "lim1", "lim2", "stride0", "stride1",
+             "stride2", "index", "end", "e_y", "e_z", "e_xy", "e_xz", "e_zy", "six", "gone", "clear")
+
+    def __init__(self, rays, stepper, bits, shape, clear, twins):
+        order, sign, origin = stepper.order, stepper.sign, stepper.origin
+        sign_k = np.take_along_axis(sign, order, axis=1)
+        origin_k = np.take_along_axis(origin, order, axis=1)
+        size = np.array(shape[::-1])[order]
+        limit = np.where(sign_k > 0, size - 1 - origin_k, origin_k)
+        stride = sign_k * bits.strides[order]
+        n = len(rays)
+        self.ray = rays
+        self.a, self.b, self.c = (np.ascontiguousarray(v) for v in stepper.extent.T)
+        self.off_y, self.off_z = np.ascontiguousarray(stepper.offset[:, 1]), np.ascontiguousarray(stepper.offset[:, 2])
+        self.q0, self.q1, self.q2 = (np.zeros(n, np.int64) for _ in range(3))
+        self.lim0, self.lim1, self.lim2 = (np.ascontiguousarray(v) for v in limit.T)
+        self.stride0, self.stride1, self.stride2 = (np.ascontiguousarray(v) for v in stride.T)
+        self.index = origin @ bits.strides
+        self.end = np.floor(stepper.offset[:, 0] + stepper.extent[:, 0] + 0.5).astype(np.int64)
+        self.e_y, self.e_z, self.e_xy, self.e_xz, self.e_zy = (stepper.e_y, stepper.e_z, stepper.e_xy, stepper.e_xz,
+                                                               stepper.e_zy)
+        self.six = np.zeros(n, bool)
+        self.gone = np.zeros(n, bool)       # rays whose way out was counted at once (_steps_out)
+        self.clear = clear
+        self.twins = twins
+        self.count = n
+
+    def keep(self, keep):
+        """Keep only the rays ``keep`` (indices)."""
+        for name in self.NAMES:
+            value = getattr(self, name)
+            if value is not None:
+                setattr(self, name, value[keep])
+        self.twins = [(offset, rays_on[keep]) for offset, rays_on in self.twins]
+        self.count = len(keep)
+
+    def closed(self, lines, count, wary):
+        """:meth:`Stepper.reach` on the rays ``lines`` (26 mode, errors in their interval): the steps up each minor
+        axis in ``count`` steps, and (``wary``) whether a tie makes the closed form unsure.
+        """
+        e_y, e_z, a, b, c = self.e_y[lines], self.e_z[lines], self.a[lines], self.b[lines], self.c[lines]
+        moves, tied = [], np.zeros(len(lines), bool)
+        for e, minor in ((e_y, b), (e_z, c)):
+            ups = np.floor((e + (count - 1) * minor + a) / a).astype(np.int64)
+            after = e + count * minor - ups * a
+            ups += (after >= minor).astype(np.int64) - (after < minor - a).astype(np.int64)
+            moves.append(ups)
+            if wary:
+                after = e + count * minor - ups * a
+                tolerance = 1e-9 * (a + 1.0)
+                tied |= ((np.abs(after) <= tolerance) | (np.abs(after - minor) <= tolerance) |
+                         (np.abs(after - minor + a) <= tolerance))
+        return moves[0], moves[1], tied
+
+    def can_jump(self, lines):
+        """Which of the rays ``lines`` the closed form holds for (:meth:`Stepper.jump`)."""
+        a, b, c, e_y, e_z = self.a[lines], self.b[lines], self.c[lines], self.e_y[lines], self.e_z[lines]
+        return ~self.six[lines] & (e_y >= b - a) & (e_y < b) & (e_z >= c - a) & (e_z < c) & (a > 0)
+
+    def inside_after(self, lines, count, up_y, up_z):
+        return ((self.q0[lines] + count <= self.lim0[lines]) & (self.q1[lines] + up_y <= self.lim1[lines]) &
+                (self.q2[lines] + up_z <= self.lim2[lines]))
+
+    def step(self, active, six):
+        """:meth:`Stepper.step`: Eqs. 9-13 into the mode ``six``, then one step of the ``active`` rays."""
+        a, b, c = self.a, self.b, self.c
+        into = np.flatnonzero(six & ~self.six)
+        if len(into):
+            bi, ci = b[into], c[into]
+            self.e_xy[into] = self.e_y[into] - 0.5 * bi                                      # Eq. 9
+            self.e_xz[into] = self.e_z[into] - 0.5 * ci                                      # Eq. 10
+            self.e_zy[into] = (bi * (self.q2[into] + 0.5 - self.off_z[into]) -
+                               ci * (self.q1[into] + 0.5 - self.off_y[into]))               # Eq. 11
+        back = np.flatnonzero(~six & self.six)
+        if len(back):
+            self.e_y[back] = self.e_xy[back] + 0.5 * b[back]                                # Eq. 12
+            self.e_z[back] = self.e_xz[back] + 0.5 * c[back]                                # Eq. 13
+        self.six = six
+        # 26 mode (Fig. 4): x always; y and z when their midpoint errors are not negative.
+        long = active & ~six
+        up_y, up_z = long & (self.e_y >= 0), long & (self.e_z >= 0)
+        self.e_y = np.where(long, self.e_y + b - np.where(up_y, a, 0), self.e_y)
+        self.e_z = np.where(long, self.e_z + c - np.where(up_z, a, 0), self.e_z)
+        self.q0 += long
+        self.q1 += up_y
+        self.q2 += up_z
+        self.index += (np.where(long, self.stride0, 0) + np.where(up_y, self.stride1, 0) +
+                       np.where(up_z, self.stride2, 0))
+        # 6 mode (Fig. 6): the tripod's three tests pick one face.
+        short = np.flatnonzero(active & six)
+        if len(short):
+            e_xy, e_xz, e_zy = self.e_xy[short], self.e_xz[short], self.e_zy[short]
+            a, b, c = a[short], b[short], c[short]
+            not_y = e_xy < 0
+            go_x = not_y & (e_xz < 0)
+            go_z = (not_y & (e_xz >= 0)) | (~not_y & (e_zy < 0))
+            go_y = ~not_y & (e_zy >= 0)
+            self.e_xy[short] = e_xy + np.where(go_x, b, 0) - np.where(go_y, a, 0)
+            self.e_xz[short] = e_xz + np.where(go_x, c, 0) - np.where(go_z, a, 0)
+            self.e_zy[short] = e_zy + np.where(go_z, b, 0) - np.where(go_y, c, 0)
+            self.q0[short] += go_x
+            self.q1[short] += go_y
+            self.q2[short] += go_z
+            self.index[short] += (np.where(go_x, self.stride0[short], 0) + np.where(go_y, self.stride1[short], 0) +
+                                  np.where(go_z, self.stride2[short], 0))
+        return int(np.count_nonzero(long)), len(short)
+
+
+def _jump(r, lines, count, wary):
+    """:meth:`Stepper.jump` of the rays ``lines`` by ``count`` steps, within the volume; returns which rays moved
+    (a bool per ray) and the steps they took.
+    """
+    moved = np.zeros(r.count, bool)
+    chosen = count > 0
+    lines, count = lines[chosen], count[chosen]
+    chosen = r.can_jump(lines)
+    lines, count = lines[chosen], count[chosen]
+    if not len(lines):
+        return moved, 0
+    up_y, up_z, tied = r.closed(lines, count, wary)
+    chosen = r.inside_after(lines, count, up_y, up_z) & ~tied
+    lines, count, up_y, up_z = lines[chosen], count[chosen], up_y[chosen], up_z[chosen]
+    a = r.a[lines]
+    r.e_y[lines] = r.e_y[lines] + count * r.b[lines] - up_y * a
+    r.e_z[lines] = r.e_z[lines] + count * r.c[lines] - up_z * a
+    r.q0[lines] += count
+    r.q1[lines] += up_y
+    r.q2[lines] += up_z
+    r.index[lines] += count * r.stride0[lines] + up_y * r.stride1[lines] + up_z * r.stride2[lines]
+    moved[lines] = True
+    return moved, int(count.sum())
+
+
+MARGIN = 2   # voxels between the object's box and the box whose outside a 26-ray crosses in one go
+
+
+def _object_box(mask):
+    """The lowest and highest ``(x, y, z)`` of the object's voxels (``mask`` a bool array or a :class:`Bitmap`),
+    or None when it has none.
+    """
+    if isinstance(mask, Bitmap):
+        words = mask.words
+        along_z, along_y = words.any(axis=(1, 2)), words.any(axis=(0, 2))
+        row = np.bitwise_or.reduce(words.reshape(-1, words.shape[2]), axis=0)
+        along_x = np.unpackbits(row.view(np.uint8), bitorder="little").astype(bool)
+    else:
+        along_z, along_y, along_x = mask.any(axis=(1, 2)), mask.any(axis=(0, 2)), mask.any(axis=(0, 1))
+    if not along_z.any():
+        return None
+    ends = [np.flatnonzero(found)[[0, -1]] for found in (along_x, along_y, along_z)]
+    return np.array([e[0] for e in ends]), np.array([e[1] for e in ends])
+
+
+def _clear_of_box(stepper, starts, ends, box):
+    """The offset along each line's driving axis up to which its voxels lie clear of the object's box grown by
+    one voxel (the proximity band's box): neither object nor band there.
+
+    Every voxel of a 26-line lies within half a voxel (chessboard) of the continuous line at its driving
+    coordinate, the first within half a voxel of the start point.  Where the line runs before it enters the box
+    grown by ``MARGIN`` voxels, its voxels are therefore more than ``MARGIN - 1/2`` voxels from the object's box.
+    A line that never enters it is clear all the way (a large number).
+    """
+    far = np.iinfo(np.int64).max // 4
+    if box is None:
+        return np.full(len(starts), far)
+    low, high = box[0] - 0.5 - MARGIN, box[1] + 0.5 + MARGIN
+    delta = ends - starts
+    moving = delta != 0
+    safe = np.where(moving, delta, 1.0)
+    t_low, t_high = (low - starts) / safe, (high - starts) / safe
+    near = np.where(moving, np.minimum(t_low, t_high), -np.inf).max(axis=1)
+    beyond = np.where(moving, np.maximum(t_low, t_high), np.inf).min(axis=1)
+    missed = (~moving & ((starts < low) | (starts > high))).any(axis=1) | (near > beyond)
+    a = stepper.extent[:, 0]
+    entry = np.clip(stepper.offset[:, 0] + np.where(a > 0, near * a, -np.inf), -2.0, 2.0 ** 52)
+    return np.where(missed, far, np.floor(entry).astype(np.int64) - 1)
+
+
+def _steps_out(r, lines, left):
+    """The rays among ``lines`` (with room for the rest of their way) that leave the volume in 26-steps through
+    empty space, and those steps.
+
+    The way out is monotone along every axis and the end point lies inside the volume, within its driving
+    voxel: the ray leaves at ``left`` or ``left + 1`` steps (``left`` to its end voxel).  The landing voxels come
+    from the closed form of :meth:`Stepper.jump`; a ray for which it does not hold (or is unsure, at a tie), or
+    that leaves otherwise, is left to the loop.
+    """
+    chosen = r.can_jump(lines)
+    lines, left = lines[chosen], left[chosen]
+
+    def inside(count):
+        up_y, up_z, tied = r.closed(lines, count, wary=True)
+        return r.inside_after(lines, count, up_y, up_z), ~tied | (count == 0)
+
+    before, known_before = inside(np.maximum(left - 1, 0))
+    at, known_at = inside(left)
+    after, known_after = inside(left + 1)
+    steps = np.where(~at & (left > 0), left, left + 1)
+    good = known_before & before & known_at & known_after & ~after
+    return lines[good], steps[good]
 
 
 def render_raycast(segments, view, progress=None, clip=None, connectivity="adaptive", compare=False):
