@@ -300,8 +300,9 @@ def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
     if not len(line):
         return np.zeros(9, np.int64), np.zeros(0, np.int64), None, lo, hi
     bounds, call, before, paint_lo, lo_keys, hi_keys = _merge_layout(line, rank, key_first, key_last, stride)
-    found_lo, found_hi = np.empty(lo_keys.shape, np.int64), np.empty(hi_keys.shape, np.int64)
-    pointer = np.empty(len(line), np.int64)
+    # (counts of segments: int32 holds them, at half the memory of a group's many spans)
+    found_lo, found_hi = np.empty(lo_keys.shape, np.int32), np.empty(hi_keys.shape, np.int32)
+    pointer = np.empty(len(line), np.int32)
     spans, pieces_lo, pieces_hi = [], [], []
     for s in range(len(bounds) - 1):
         a, b = bounds[s], bounds[s + 1]
@@ -327,6 +328,7 @@ def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
 
     # unlit segments starting at most at the span's end (or its scanline's start), before its first key, on
     # earlier scanlines or on its own; ending before its first key, before its last, at most at its last
+    del lo_keys, hi_keys
     reach, starts_before, scan_end = found_lo
     first_reaching, last_reaching, last_or_before, scan_start = found_hi
     # (none passed or covered on a scanline it does not walk: pointer >= scan_end)
