@@ -49,6 +49,8 @@ class Bitmap:
         """
         nz, ny, nx = segments.shape
         row_bytes = -(-nx // 64) * 8
+        if clip is None or not clip.active:
+            return cls(cls._of_runs(segments, row_bytes // 8), segments.shape)
         words = np.zeros((nz, ny, row_bytes // 8), np.uint64)
         x, y = np.arange(nx), np.arange(ny)[:, None]
         for z in range(nz):
@@ -58,6 +60,29 @@ class Bitmap:
             packed = np.packbits(plane, axis=1, bitorder="little")
             words[z].view(np.uint8)[:, :packed.shape[1]] = packed
         return cls(words, segments.shape)
+
+    @staticmethod
+    def _of_runs(segments, per_row):
+        """The words of the runs, written run by run: the bits from its start in its first word, up to its end in
+        its last, and the whole words between (which no other run shares).
+        """
+        from ..segments import ranges
+
+        nz, ny, _ = segments.shape
+        words = np.zeros(nz * ny * per_row, np.uint64)
+        starts, ends = np.asarray(segments.starts, np.int64), np.asarray(segments.ends, np.int64)
+        rows = segments.run_rows() * per_row
+        first, last = rows + (starts >> 6), rows + (ends >> 6)
+        full = np.uint64(0xFFFFFFFFFFFFFFFF)
+        low = full << (starts & 63).astype(np.uint64)
+        high = full >> (63 - (ends & 63)).astype(np.uint64)
+        alone = first == last
+        np.bitwise_or.at(words, first, np.where(alone, low & high, low))
+        np.bitwise_or.at(words, last[~alone], high[~alone])
+        between = last - first - 1
+        inner = between > 0
+        words[ranges(first[inner] + 1, between[inner])] = full
+        return words.reshape(nz, ny, per_row)
 
     def __getitem__(self, index):
         z, y, x = index
@@ -508,12 +533,13 @@ def _steps_out(r, lines, left):
         up_y, up_z, tied = r.closed(lines, count, wary=True)
         return r.inside_after(lines, count, up_y, up_z), ~tied | (count == 0)
 
-    before, known_before = inside(np.maximum(left - 1, 0))
+    # Inside at its end voxel: out at the next step if that one is outside.  Outside there: out at that step
+    # if the one before is inside (the voxels before it are, the way being monotone).
     at, known_at = inside(left)
-    after, known_after = inside(left + 1)
-    steps = np.where(~at & (left > 0), left, left + 1)
-    good = known_before & before & known_at & known_after & ~after
-    return lines[good], steps[good]
+    then = np.where(at, left + 1, np.maximum(left - 1, 0))
+    inside_then, known_then = inside(then)
+    good = known_at & known_then & (inside_then != at) & (at | (left > 0))
+    return lines[good], np.where(at, left + 1, left)[good]
 
 
 def render_raycast(segments, view, progress=None, clip=None, connectivity="adaptive", compare=False):
