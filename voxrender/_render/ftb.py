@@ -326,9 +326,10 @@ def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
         pieces_lo.append(piece_lo)
         pieces_hi.append(piece_hi)
 
-    # unlit segments starting at most at the span's end (or its scanline's start), before its first key, on
-    # earlier scanlines or on its own; ending before its first key, before its last, at most at its last
     del lo_keys, hi_keys
+    # Per span, how many unlit segments (as its batch found them) start: at most at its end (at most at its
+    # scanline's start when M covers it), before its first key, before the next scanline; and end: before its
+    # first key, before its last, at most at its last, before its scanline.
     reach, starts_before, scan_end = found_lo
     first_reaching, last_reaching, last_or_before, scan_start = found_hi
     # (none passed or covered on a scanline it does not walk: pointer >= scan_end)
