@@ -120,3 +120,74 @@ def test_a_jump_is_the_steps_one_by_one():
         for k in range(25):
             other.step(k < taken, np.zeros(n, bool))
         assert np.array_equal(one.voxels, other.voxels) and (taken > 0).mean() > 0.5
+
+
+def stepped_one_by_one(mask, band, view, connectivity):
+    """The rays of ``_cast`` stepped by :class:`voxrender.lines.Stepper` one voxel at a time, every ray every
+    round (no jumps, no closed forms): the hit voxel per pixel and the logical steps.  Views off the axes only
+    (no ray along a face between voxel columns)."""
+    from voxrender._render.raycast import _rays_of
+    from voxrender.lines import Stepper
+
+    rays, starts, ends, between = _rays_of(view, mask.shape)
+    assert not between.any()
+    stepper = Stepper(starts, ends)
+    hit_voxel = np.full((view.size[0] * view.size[1], 3), -1, np.int64)
+    steps = {"26": 0, "6": 0}
+    going = np.ones(len(rays), bool)
+    while going.any():
+        voxel = stepper.voxels
+        inside = np.all((voxel >= 0) & (voxel < np.array(mask.shape[::-1])), axis=1)
+        x, y, z = np.where(inside[:, None], voxel, 0).T
+        occupied = going & inside & mask[z, y, x]
+        hit_voxel[rays[occupied]] = voxel[occupied]
+        going &= inside & ~occupied
+        six = {"6": going.copy(), "26": np.zeros(len(rays), bool)}.get(connectivity)
+        if six is None:
+            six = band[z, y, x] & going
+        taken_26, taken_6 = stepper.step(going, six)
+        steps["26"] += taken_26
+        steps["6"] += taken_6
+    return hit_voxel, steps
+
+
+def small_objects(rng):
+    """Random small objects in a larger empty volume: specks, a slab, a ball and a one-voxel shell, placed off
+    the centre, so that most rays pass the object's box and those that meet it cross empty space first."""
+    shape = tuple(int(n) for n in rng.integers(36, 60, 3))
+    mask = np.zeros(shape, bool)
+    corner = [int(rng.integers(2, n - 22)) for n in shape]
+    z0, y0, x0 = corner
+    kind = rng.integers(3)
+    if kind == 0:
+        mask[z0 + rng.integers(0, 20, 25), y0 + rng.integers(0, 20, 25), x0 + rng.integers(0, 20, 25)] = True
+    elif kind == 1:
+        mask[z0:z0 + 18, y0 + 5:y0 + 7, x0:x0 + 15] = True
+    else:
+        z, y, x = np.ogrid[:20, :20, :20]
+        radius = np.sqrt((z - 9.5) ** 2 + (y - 9.5) ** 2 + (x - 9.5) ** 2)
+        mask[z0:z0 + 20, y0:y0 + 20, x0:x0 + 20] = (radius <= 8) if rng.random() < 0.5 else np.abs(radius - 7) <= 0.5
+    return mask
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_fast_rays_hit_and_step_as_the_stepper_one_by_one(seed):
+    """The production cast (flat arrays, jumps over empty space and to the object's box, ways out counted in
+    closed form) hits the voxels and counts the logical steps of the literal stepper taken one voxel at a time."""
+    from voxrender._render.raycast import _cast, empty_space
+
+    rng = np.random.default_rng(seed)
+    mask = small_objects(rng)
+    band = proximity_band(mask)
+    for _ in range(3):
+        alpha, beta, gamma = rng.uniform(-180, 180, 3)
+        view = View(alpha, beta, gamma, (int(rng.integers(30, 50)), int(rng.integers(30, 50))),
+                    float(rng.uniform(0.5, 1.6)))
+        for connectivity in ("adaptive", "26", "6"):
+            reference = stepped_one_by_one(mask, band, view, connectivity)
+            space = empty_space(mask) if connectivity != "6" else None
+            hit_voxel, steps, _ = _cast(mask, band if connectivity == "adaptive" else None, view, connectivity,
+                                        space=space)
+            assert np.array_equal(hit_voxel, reference[0]), (seed, view, connectivity)
+            assert steps == reference[1], (seed, view, connectivity)
+            assert (hit_voxel[:, 0] >= 0).any() or not mask.any()

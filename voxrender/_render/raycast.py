@@ -189,38 +189,60 @@ def empty_space(mask, block=BLOCK):
     return ndimage.distance_transform_cdt(~blocks, metric="chessboard").astype(np.int32, copy=False)
 
 
+def _rays_of(view, shape):
+    """The pixels whose rays meet the volume's box of cubes (``shape``), each ray's start and end point (just
+    inside the box) in object coordinates, and the axes along which it runs exactly on a face between two voxel
+    columns (``between``, an ``(n, 3)`` bool).
+    """
+    nz, ny, nx = shape
+    matrix = view.matrix
+    big_x, big_y = np.meshgrid(*view.pixel_centres())
+    origins = view.to_object(big_x.ravel(), big_y.ravel(), 0.0, shape)
+    # Clip every ray to the volume's box of cubes, an axis at a time; along an axis it does not move, it is
+    # inside or not at all.
+    top = np.array([nx, ny, nz]) - 0.5
+    parallel = np.abs(matrix[2]) < 1e-12
+    t_in, t_out = np.full(len(origins[0]), -np.inf), np.full(len(origins[0]), np.inf)
+    outside = np.zeros(len(origins[0]), bool)
+    for axis in range(3):
+        low, high = -0.5 - origins[axis], top[axis] - origins[axis]
+        if parallel[axis]:
+            outside |= (low > 1e-9) | (high < -1e-9)
+        else:
+            low, high = low / matrix[2, axis], high / matrix[2, axis]
+            t_in = np.maximum(t_in, np.minimum(low, high))
+            t_out = np.minimum(t_out, np.maximum(low, high))
+    rays = np.flatnonzero((t_in < t_out) & ~outside)
+    t_in, t_out = t_in[rays], t_out[rays]
+    inset = 1e-7 * np.sign(t_out - t_in)
+    starts, ends, between = np.empty((len(rays), 3)), np.empty((len(rays), 3)), np.zeros((len(rays), 3), bool)
+    for axis in range(3):
+        origin = origins[axis][rays]
+        start = origin + (t_in + inset) * matrix[2, axis]
+        end = origin + (t_out - inset) * matrix[2, axis]
+        if parallel[axis]:
+            # A ray that runs exactly along a face between two voxel columns meets both closed cubes (the
+            # contract); the discrete line follows the upper one, and the lower one is looked up beside it.
+            # On the volume's top face there is no upper one: the line follows the lower, with nothing beside it.
+            fraction = (start + 0.5) % 1.0
+            on_face = np.minimum(fraction, 1 - fraction) < 1e-9
+            start = np.where(on_face, np.round(start + 0.5) - 0.5, start)
+            between[:, axis] = on_face & (start < top[axis] - 0.5)
+            start = np.clip(start, -0.5 + 1e-9, top[axis] - 1e-9)
+            end = np.where(on_face, start, end)          # along such an axis the ray does not move
+        else:
+            start = np.clip(start, -0.5 + 1e-9, top[axis] - 1e-9)
+        starts[:, axis], ends[:, axis] = start, end
+    return rays, starts, ends, between
+
+
 def _cast(mask, band, view, connectivity, progress=None, space=None):
     """Step every pixel's ray through ``mask``; return the hit voxel per pixel (or -1), the (logical) step counts
     and the iterations run.  With ``space`` (:func:`empty_space`), a 26-ray far from the object takes the
     steps it has room for at once (:meth:`Stepper.jump`), onto the voxel the steps one by one reach.
     """
-    nz, ny, nx = mask.shape
-    matrix = view.matrix
     height, width = view.size
-    big_x, big_y = np.meshgrid(*view.pixel_centres())
-    origins = np.stack(view.to_object(big_x.ravel(), big_y.ravel(), 0.0, mask.shape), axis=1)
-    # Clip every ray to the volume's box of cubes; along an axis it does not move, it is inside or not at all.
-    parallel = np.abs(matrix[2]) < 1e-12
-    direction = np.where(parallel, 1.0, matrix[2])
-    low, high = -0.5 - origins, np.array([nx, ny, nz]) - 0.5 - origins
-    near = np.where(parallel, -np.inf, np.minimum(low / direction, high / direction))
-    far = np.where(parallel, np.inf, np.maximum(low / direction, high / direction))
-    outside = (parallel & ((low > 1e-9) | (high < -1e-9))).any(axis=1)
-    t_in, t_out = near.max(axis=1), far.min(axis=1)
-    rays = np.flatnonzero((t_in < t_out) & ~outside)
-    inset = 1e-7 * np.sign(t_out[rays] - t_in[rays])
-    starts = origins[rays] + (t_in[rays] + inset)[:, None] * matrix[2]
-    ends = origins[rays] + (t_out[rays] - inset)[:, None] * matrix[2]
-    # A ray that runs exactly along a face between two voxel columns meets both closed cubes (the
-    # contract); the discrete line follows the upper one, and the lower one is looked up beside it.
-    # On the volume's top face there is no upper one: the line follows the lower, with nothing beside it.
-    fraction = (starts + 0.5) % 1.0
-    on_face = (np.abs(matrix[2]) < 1e-12) & (np.minimum(fraction, 1 - fraction) < 1e-9)
-    top = np.array([nx, ny, nz]) - 0.5
-    starts = np.where(on_face, np.round(starts + 0.5) - 0.5, starts)
-    between = on_face & (starts < top - 0.5)
-    starts = np.clip(starts, -0.5 + 1e-9, top - 1e-9)
-    ends = np.where(on_face, starts, ends)              # along such an axis the ray does not move
+    rays, starts, ends, between = _rays_of(view, mask.shape)
     stepper = Stepper(starts, ends)
     twins = []
     for offset in (np.array(o) for o in np.ndindex(2, 2, 2) if any(o)):
@@ -237,6 +259,10 @@ def _cast(mask, band, view, connectivity, progress=None, space=None):
     if space is not None:
         space_flat, (_, blocks_y, blocks_x) = space.ravel(), space.shape
         block_shift = BLOCK.bit_length() - 1
+        # A ray clear of the object's box where it starts, for which the closed form does not hold yet, takes its
+        # first 26-step now, as it would in the first round: the next can count it out or jump it.
+        first = (r.clear >= 0) & ~r.can_jump(np.arange(r.count))
+        steps["26"] += r.step(first, np.zeros(r.count, bool))[0]
     while r.count:
         inside = (r.q0 <= r.lim0) & (r.q1 <= r.lim1) & (r.q2 <= r.lim2)
         at = np.where(inside, r.index, 0)
@@ -356,7 +382,7 @@ class _Rays:
         self.q0, self.q1, self.q2 = (np.zeros(n, np.int64) for _ in range(3))
         self.lim0, self.lim1, self.lim2 = (np.ascontiguousarray(v) for v in limit.T)
         self.stride0, self.stride1, self.stride2 = (np.ascontiguousarray(v) for v in stride.T)
-        self.index = origin @ bits.strides
+        self.index = origin[:, 0] * bits.strides[0] + origin[:, 1] * bits.strides[1] + origin[:, 2] * bits.strides[2]
         self.end = np.floor(stepper.offset[:, 0] + stepper.extent[:, 0] + 0.5).astype(np.int64)
         self.e_y, self.e_z, self.e_xy, self.e_xz, self.e_zy = (stepper.e_y, stepper.e_z, stepper.e_xy, stepper.e_xz,
                                                                stepper.e_zy)
@@ -505,13 +531,20 @@ def _clear_of_box(stepper, starts, ends, box):
     if box is None:
         return np.full(len(starts), far)
     low, high = box[0] - 0.5 - MARGIN, box[1] + 0.5 + MARGIN
-    delta = ends - starts
-    moving = delta != 0
-    safe = np.where(moving, delta, 1.0)
-    t_low, t_high = (low - starts) / safe, (high - starts) / safe
-    near = np.where(moving, np.minimum(t_low, t_high), -np.inf).max(axis=1)
-    beyond = np.where(moving, np.maximum(t_low, t_high), np.inf).min(axis=1)
-    missed = (~moving & ((starts < low) | (starts > high))).any(axis=1) | (near > beyond)
+    near, beyond = np.full(len(starts), -np.inf), np.full(len(starts), np.inf)
+    missed = np.zeros(len(starts), bool)
+    for axis in range(3):                 # the slab test, an axis at a time
+        start = starts[:, axis]
+        delta = ends[:, axis] - start
+        still = delta == 0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_low, t_high = (low[axis] - start) / delta, (high[axis] - start) / delta
+        if still.any():                   # along an axis it does not move, it is inside or not at all
+            missed |= still & ((start < low[axis]) | (start > high[axis]))
+            t_low, t_high = np.where(still, -np.inf, t_low), np.where(still, np.inf, t_high)
+        near = np.maximum(near, np.minimum(t_low, t_high))
+        beyond = np.minimum(beyond, np.maximum(t_low, t_high))
+    missed |= near > beyond
     a = stepper.extent[:, 0]
     entry = np.clip(stepper.offset[:, 0] + np.where(a > 0, near * a, -np.inf), -2.0, 2.0 ** 52)
     return np.where(missed, far, np.floor(entry).astype(np.int64) - 1)
