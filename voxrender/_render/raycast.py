@@ -257,11 +257,12 @@ def _cast(mask, band, view, connectivity, progress=None, space=None):
     steps = {"26": 0, "6": 0}
     iterations = 0
     if space is not None:
-        space_flat, (_, blocks_y, blocks_x) = space.ravel(), space.shape
+        rooms = np.where(space >= 2, BLOCK * (space.astype(np.int64) - 1), 0).ravel()   # steps a block allows
+        (_, blocks_y, blocks_x) = space.shape
         block_shift = BLOCK.bit_length() - 1
         # A ray clear of the object's box where it starts, for which the closed form does not hold yet, takes its
         # first 26-step now, as it would in the first round: the next can count it out or jump it.
-        first = (r.clear >= 0) & ~r.can_jump(np.arange(r.count))
+        first = (r.clear >= 0) & ~r.gather(slice(None))[1]
         steps["26"] += r.step(first, np.zeros(r.count, bool))[0]
     while r.count:
         inside = (r.q0 <= r.lim0) & (r.q1 <= r.lim1) & (r.q2 <= r.lim2)
@@ -291,9 +292,8 @@ def _cast(mask, band, view, connectivity, progress=None, space=None):
         if space is not None:
             free = going & ~six
             x, y, z = bits.coords(at)
-            distance = space_flat[((z >> block_shift) * blocks_y + (y >> block_shift)) * blocks_x +
-                                  (x >> block_shift)]
-            near = np.where(free & (distance >= 2), BLOCK * (distance.astype(np.int64) - 1), 0)
+            near = np.where(free, rooms[((z >> block_shift) * blocks_y + (y >> block_shift)) * blocks_x +
+                                        (x >> block_shift)], 0)
             far = np.where(free, r.clear + 1 - r.q0, 0)
             left = r.end - r.q0
             out = np.flatnonzero(np.maximum(near, far) > left)     # the whole rest of the way is empty
@@ -401,30 +401,16 @@ class _Rays:
         self.twins = [(offset, rays_on[keep]) for offset, rays_on in self.twins]
         self.count = len(keep)
 
-    def closed(self, lines, count, wary):
-        """:meth:`Stepper.reach` on the rays ``lines`` (26 mode, errors in their interval): the steps up each minor
-        axis in ``count`` steps, and (``wary``) whether a tie makes the closed form unsure.
+    def gather(self, lines):
+        """The errors and extents ``e_y, e_z, a, b, c`` of the rays ``lines``, and whether the closed form of
+        :meth:`Stepper.jump` holds for each (26 mode, errors in their interval).
         """
         e_y, e_z, a, b, c = self.e_y[lines], self.e_z[lines], self.a[lines], self.b[lines], self.c[lines]
-        moves, tied = [], np.zeros(len(lines), bool)
-        for e, minor in ((e_y, b), (e_z, c)):
-            ups = np.floor((e + (count - 1) * minor + a) / a).astype(np.int64)
-            after = e + count * minor - ups * a
-            ups += (after >= minor).astype(np.int64) - (after < minor - a).astype(np.int64)
-            moves.append(ups)
-            if wary:
-                after = e + count * minor - ups * a
-                tolerance = 1e-9 * (a + 1.0)
-                tied |= ((np.abs(after) <= tolerance) | (np.abs(after - minor) <= tolerance) |
-                         (np.abs(after - minor + a) <= tolerance))
-        return moves[0], moves[1], tied
-
-    def can_jump(self, lines):
-        """Which of the rays ``lines`` the closed form holds for (:meth:`Stepper.jump`)."""
-        a, b, c, e_y, e_z = self.a[lines], self.b[lines], self.c[lines], self.e_y[lines], self.e_z[lines]
-        return ~self.six[lines] & (e_y >= b - a) & (e_y < b) & (e_z >= c - a) & (e_z < c) & (a > 0)
+        holds = ~self.six[lines] & (e_y >= b - a) & (e_y < b) & (e_z >= c - a) & (e_z < c) & (a > 0)
+        return (e_y, e_z, a, b, c), holds
 
     def inside_after(self, lines, count, up_y, up_z):
+        """Whether the rays ``lines`` are still in the volume after ``count`` steps that go up ``up_y, up_z``."""
         return ((self.q0[lines] + count <= self.lim0[lines]) & (self.q1[lines] + up_y <= self.lim1[lines]) &
                 (self.q2[lines] + up_z <= self.lim2[lines]))
 
@@ -473,6 +459,27 @@ class _Rays:
         return int(np.count_nonzero(long)), len(short)
 
 
+def _closed(errors, count, wary):
+    """:meth:`Stepper.reach` of lines with ``errors`` (:meth:`_Rays.gather`), operation for operation: the steps up
+    each minor axis in ``count`` steps, and (``wary``) whether a tie makes the closed form unsure.  Meaningless
+    where the closed form does not hold.
+    """
+    e_y, e_z, a, b, c = errors
+    safe_a = np.where(a > 0, a, 1.0)
+    moves, tied = [], np.zeros(len(a), bool)
+    for e, minor in ((e_y, b), (e_z, c)):
+        ups = np.floor((e + (count - 1) * minor + a) / safe_a).astype(np.int64)
+        after = e + count * minor - ups * a
+        ups += (after >= minor).astype(np.int64) - (after < minor - a).astype(np.int64)   # rounding at the edges
+        moves.append(ups)
+        if wary:
+            after = e + count * minor - ups * a
+            tolerance = 1e-9 * (safe_a + 1.0)
+            tied |= ((np.abs(after) <= tolerance) | (np.abs(after - minor) <= tolerance) |
+                     (np.abs(after - minor + a) <= tolerance))
+    return moves[0], moves[1], tied
+
+
 def _jump(r, lines, count, wary):
     """:meth:`Stepper.jump` of the rays ``lines`` by ``count`` steps, within the volume; returns which rays moved
     (a bool per ray) and the steps they took.
@@ -480,16 +487,15 @@ def _jump(r, lines, count, wary):
     moved = np.zeros(r.count, bool)
     chosen = count > 0
     lines, count = lines[chosen], count[chosen]
-    chosen = r.can_jump(lines)
-    lines, count = lines[chosen], count[chosen]
     if not len(lines):
         return moved, 0
-    up_y, up_z, tied = r.closed(lines, count, wary)
-    chosen = r.inside_after(lines, count, up_y, up_z) & ~tied
-    lines, count, up_y, up_z = lines[chosen], count[chosen], up_y[chosen], up_z[chosen]
-    a = r.a[lines]
-    r.e_y[lines] = r.e_y[lines] + count * r.b[lines] - up_y * a
-    r.e_z[lines] = r.e_z[lines] + count * r.c[lines] - up_z * a
+    errors, holds = r.gather(lines)
+    up_y, up_z, tied = _closed(errors, count, wary)
+    chosen = np.flatnonzero(holds & ~tied & r.inside_after(lines, count, up_y, up_z))
+    (e_y, e_z, a, b, c), lines = (e[chosen] for e in errors), lines[chosen]
+    count, up_y, up_z = count[chosen], up_y[chosen], up_z[chosen]
+    r.e_y[lines] = e_y + count * b - up_y * a
+    r.e_z[lines] = e_z + count * c - up_z * a
     r.q0[lines] += count
     r.q1[lines] += up_y
     r.q2[lines] += up_z
@@ -559,11 +565,12 @@ def _steps_out(r, lines, left):
     from the closed form of :meth:`Stepper.jump`; a ray for which it does not hold (or is unsure, at a tie), or
     that leaves otherwise, is left to the loop.
     """
-    chosen = r.can_jump(lines)
-    lines, left = lines[chosen], left[chosen]
+    errors, holds = r.gather(lines)
+    chosen = np.flatnonzero(holds)
+    errors, lines, left = tuple(e[chosen] for e in errors), lines[chosen], left[chosen]
 
     def inside(count):
-        up_y, up_z, tied = r.closed(lines, count, wary=True)
+        up_y, up_z, tied = _closed(errors, count, wary=True)
         return r.inside_after(lines, count, up_y, up_z), ~tied | (count == 0)
 
     # Inside at its end voxel: out at the next step if that one is outside.  Outside there: out at that step
