@@ -191,3 +191,27 @@ def test_the_fast_rays_hit_and_step_as_the_stepper_one_by_one(seed):
             assert np.array_equal(hit_voxel, reference[0]), (seed, view, connectivity)
             assert steps == reference[1], (seed, view, connectivity)
             assert (hit_voxel[:, 0] >= 0).any() or not mask.any()
+
+
+def test_a_diagonal_line_above_its_interval_goes_up_every_step():
+    """At alpha = -45 two extents are equal to rounding, and a line's error can sit at or above the top of its
+    interval, where it goes up at every step (the closed form's extra case): the steps one by one agree."""
+    from voxrender._render.raycast import _closed
+    from voxrender.lines import Stepper
+
+    rng = np.random.default_rng(3)
+    n = 4000
+    starts = rng.uniform(0, 40, (n, 3))
+    ends = starts + rng.uniform(20, 80, (n, 1)) * View(-45, 15, 0).matrix[2]
+    lines = Stepper(starts, ends)
+    a, b, c = lines.extent.T
+    count = rng.integers(1, 40, n)
+    up_y, up_z, refused = _closed((lines.e_y, lines.e_z, a, b, c), count, wary=True)
+    holds = (lines.e_y >= b - a) & (lines.e_z >= c - a) & ~refused
+    above = holds & ((lines.e_y >= b) | (lines.e_z >= c))
+    before = lines.q.copy()
+    for k in range(40):
+        lines.step(k < count, np.zeros(n, bool))
+    moved = lines.q - before
+    assert above.sum() > n // 10
+    assert np.array_equal(moved[holds], np.stack([count, up_y, up_z], axis=1)[holds])

@@ -402,11 +402,11 @@ class _Rays:
         self.count = len(keep)
 
     def gather(self, lines):
-        """The errors and extents ``e_y, e_z, a, b, c`` of the rays ``lines``, and whether the closed form of
-        :meth:`Stepper.jump` holds for each (26 mode, errors in their interval).
+        """The errors and extents ``e_y, e_z, a, b, c`` of the rays ``lines``, and whether a closed form may hold for
+        each (26 mode, errors not below their interval; :func:`_closed` tells for how many steps).
         """
         e_y, e_z, a, b, c = self.e_y[lines], self.e_z[lines], self.a[lines], self.b[lines], self.c[lines]
-        holds = ~self.six[lines] & (e_y >= b - a) & (e_y < b) & (e_z >= c - a) & (e_z < c) & (a > 0)
+        holds = ~self.six[lines] & (e_y >= b - a) & (e_z >= c - a) & (a > 0)     # below: just after 6 mode
         return (e_y, e_z, a, b, c), holds
 
     def inside_after(self, lines, count, up_y, up_z):
@@ -461,23 +461,30 @@ class _Rays:
 
 def _closed(errors, count, wary):
     """:meth:`Stepper.reach` of lines with ``errors`` (:meth:`_Rays.gather`), operation for operation: the steps up
-    each minor axis in ``count`` steps, and (``wary``) whether a tie makes the closed form unsure.  Meaningless
-    where the closed form does not hold.
+    each minor axis in ``count`` steps, and which lines it does not hold for (or, ``wary``, is unsure of at a
+    tie).  Meaningless where :meth:`_Rays.gather` says it cannot hold.
+
+    One more case than :meth:`Stepper.jump`: an error at or above ``b`` (the top of its interval), which a line
+    whose minor extent equals its driving one to rounding (a diagonal, as at alpha = -45) keeps, losing
+    ``a - b`` a step: while it stays at ``b`` or above, every step goes up that axis.
     """
     e_y, e_z, a, b, c = errors
     safe_a = np.where(a > 0, a, 1.0)
-    moves, tied = [], np.zeros(len(a), bool)
+    moves, refused = [], np.zeros(len(a), bool)
     for e, minor in ((e_y, b), (e_z, c)):
         ups = np.floor((e + (count - 1) * minor + a) / safe_a).astype(np.int64)
         after = e + count * minor - ups * a
         ups += (after >= minor).astype(np.int64) - (after < minor - a).astype(np.int64)   # rounding at the edges
+        above = e >= minor
+        tolerance = 1e-9 * (safe_a + 1.0)
+        refused |= above & (e - count * (a - minor) < minor + tolerance)
+        ups = np.where(above, count, ups)
         moves.append(ups)
         if wary:
             after = e + count * minor - ups * a
-            tolerance = 1e-9 * (safe_a + 1.0)
-            tied |= ((np.abs(after) <= tolerance) | (np.abs(after - minor) <= tolerance) |
-                     (np.abs(after - minor + a) <= tolerance))
-    return moves[0], moves[1], tied
+            refused |= ((np.abs(after) <= tolerance) | (np.abs(after - minor) <= tolerance) |
+                        (np.abs(after - minor + a) <= tolerance))
+    return moves[0], moves[1], refused
 
 
 def _jump(r, lines, count, wary):
@@ -490,8 +497,8 @@ def _jump(r, lines, count, wary):
     if not len(lines):
         return moved, 0
     errors, holds = r.gather(lines)
-    up_y, up_z, tied = _closed(errors, count, wary)
-    chosen = np.flatnonzero(holds & ~tied & r.inside_after(lines, count, up_y, up_z))
+    up_y, up_z, refused = _closed(errors, count, wary)
+    chosen = np.flatnonzero(holds & ~refused & r.inside_after(lines, count, up_y, up_z))
     (e_y, e_z, a, b, c), lines = (e[chosen] for e in errors), lines[chosen]
     count, up_y, up_z = count[chosen], up_y[chosen], up_z[chosen]
     r.e_y[lines] = e_y + count * b - up_y * a
@@ -570,8 +577,8 @@ def _steps_out(r, lines, left):
     errors, lines, left = tuple(e[chosen] for e in errors), lines[chosen], left[chosen]
 
     def inside(count):
-        up_y, up_z, tied = _closed(errors, count, wary=True)
-        return r.inside_after(lines, count, up_y, up_z), ~tied | (count == 0)
+        up_y, up_z, refused = _closed(errors, count, wary=True)
+        return r.inside_after(lines, count, up_y, up_z), ~refused | (count == 0)
 
     # Inside at its end voxel: out at the next step if that one is outside.  Outside there: out at that step
     # if the one before is inside (the voxels before it are, the way being monotone).
