@@ -374,56 +374,36 @@ class Stepper:
         """26-steps from each line's voxel to the one holding its end point (along the driving axis)."""
         return np.floor(self.offset[:, 0] + self.extent[:, 0] + 0.5).astype(np.int64) - self.q[:, 0]
 
-    def jump(self, count, within=None, wary=False):
+    def jump(self, count, within=None):
         """Take ``count[i]`` 26-steps at once on line ``i`` (0 for none), in closed form.
 
         In 26 mode the midpoint error of each minor axis runs ``e <- e + b``, less ``a`` when ``e >= 0`` (a step
         up that axis).  From the interval ``[b - a, b)``, which those steps keep, ``k`` steps go up
         ``floor((e + k b - b + a) / a)`` times: the voxel that ``k`` calls of :meth:`step` reach.  A line whose
         error lies outside that interval (just after 6 mode), or whose landing voxel would lie outside the box
-        ``within`` (``(nx, ny, nz)``, voxels ``0 .. n - 1``), is not moved; nor, if ``wary`` (bool per line),
-        one with a tie at its last step or the next (:meth:`reach`).  Returns how many steps each took.
-        """
-        k, q, moves = self.reach(count, wary)
-        if within is not None:             # the path is monotone along every axis: inside when its landing is
-            landing = self.origin + self.sign * np.take_along_axis(q, self.unorder, axis=1)
-            k = np.where(np.any((landing < 0) | (landing >= np.asarray(within)), axis=1), 0, k)
-            q = np.where((k > 0)[:, None], q, self.q)
-            moves = [np.where(k > 0, m, 0) for m in moves]
-        a, b, c = self.extent.T
-        self.e_y = self.e_y + k * b - moves[0] * a
-        self.e_z = self.e_z + k * c - moves[1] * a
-        self.q = q
-        return k
-
-    def reach(self, count, wary=False):
-        """Where :meth:`jump` would take each line, without moving it: the steps ``k`` it can take (0 where the
-        closed form does not hold), the frame offsets ``q`` it lands on and the steps up each minor axis.
-
-        The closed form rounds otherwise than the steps one by one, which add ``b`` and take ``a`` a step at a
-        time: where a midpoint lies on the line (an error of 0, a tie, which lines of a rational slope meet
-        again and again) the two may go different ways.  A ``wary`` line whose error is within rounding of a
-        tie at its last step or the next is not moved (``k`` 0).
+        ``within`` (``(nx, ny, nz)``, voxels ``0 .. n - 1``), is not moved.  Returns how many steps each took.
         """
         count = np.asarray(count, np.int64)
         a, b, c = self.extent.T
         k = np.where((count > 0) & ~self.six & (self.e_y >= b - a) & (self.e_y < b) & (self.e_z >= c - a) &
                      (self.e_z < c) & (a > 0), count, 0)
         safe_a = np.where(a > 0, a, 1.0)
-        moves, tied = [], np.zeros(len(k), bool)
+        moves = []
         for e, minor in ((self.e_y, b), (self.e_z, c)):
             ups = np.floor((e + (k - 1) * minor + a) / safe_a).astype(np.int64)
             after = e + k * minor - ups * a
             ups += (after >= minor).astype(np.int64) - (after < minor - a).astype(np.int64)   # rounding at the edges
-            moves.append(ups)
-            if np.any(wary):     # the error after the steps near 0 (the next step's tie) or an edge (the last's)
-                after = e + k * minor - ups * a
-                tolerance = 1e-9 * (safe_a + 1.0)
-                tied |= ((np.abs(after) <= tolerance) | (np.abs(after - minor) <= tolerance) |
-                         (np.abs(after - minor + a) <= tolerance))
-        k = np.where(tied & wary, 0, k)
-        moves = [np.where(k > 0, ups, 0) for ups in moves]
-        return k, self.q + np.stack([k, *moves], axis=1), moves
+            moves.append(np.where(k > 0, ups, 0))
+        q = self.q + np.stack([k, *moves], axis=1)
+        if within is not None:             # the path is monotone along every axis: inside when its landing is
+            landing = self.origin + self.sign * np.take_along_axis(q, self.unorder, axis=1)
+            k = np.where(np.any((landing < 0) | (landing >= np.asarray(within)), axis=1), 0, k)
+            q = np.where((k > 0)[:, None], q, self.q)
+            moves = [np.where(k > 0, m, 0) for m in moves]
+        self.e_y = self.e_y + k * b - moves[0] * a
+        self.e_z = self.e_z + k * c - moves[1] * a
+        self.q = q
+        return k
 
     def step(self, active, six):
         """Advance the ``active`` lines one voxel; return the number of 26-steps and 6-steps taken."""

@@ -460,9 +460,10 @@ class _Rays:
 
 
 def _closed(errors, count, wary):
-    """:meth:`Stepper.reach` of lines with ``errors`` (:meth:`_Rays.gather`), operation for operation: the steps up
-    each minor axis in ``count`` steps, and which lines it does not hold for (or, ``wary``, is unsure of at a
-    tie).  Meaningless where :meth:`_Rays.gather` says it cannot hold.
+    """The closed form of :meth:`Stepper.jump` for lines with ``errors`` (:meth:`_Rays.gather`), operation for
+    operation: the steps up each minor axis in ``count`` steps, and which lines it does not hold for (or,
+    ``wary``, is unsure of: a midpoint on the line, a tie, at the last step or the next, which the steps one by
+    one decide by their own rounding).  Meaningless where :meth:`_Rays.gather` says it cannot hold.
 
     One more case than :meth:`Stepper.jump`: an error at or above ``b`` (the top of its interval), which a line
     whose minor extent equals its driving one to rounding (a diagonal, as at alpha = -45) keeps, losing
