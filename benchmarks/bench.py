@@ -25,7 +25,8 @@ It measures, on ``vhf_head`` at 300 HU (512 x 512 pictures at scale 1):
   against the z-buffer over a range of voxel counts (the linear-octree paper's Table 4);
 * the big stack (``benchmarks/big_stack.py``): a 2048^3 uint16 TIFF stack written once into a cache, encoded
   (plain, ``--bin 2``, ``--jobs 2``) and rendered by ftb at 1024^2 from disk, beside a cold ``cat`` of the same
-  files, with peak RSS (run as root, so that the page cache can be dropped before each).
+  files, with peak RSS (run as root, so that the page cache can be dropped before each); about 20 minutes of
+  the run, left out by ``--no-big-stack``.
 
 Results go to ``benchmark-results/results.md`` and ``results.json``.
 """
@@ -724,7 +725,7 @@ def bench_octree_build(encoded, copies=4):
             "encode_octree_wall_s": wall_s, "peak_mb": peak_kb / 1024}
 
 
-def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
+def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True, big=True):
     """All sections; returns the results dict."""
     path = Path(data) / "vhf_head"
     compile_bytecode(HERE)            # the fresh commands start as an installed package does
@@ -762,7 +763,8 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
                                    repeat),
             "octree_files": bench_octree_files(encoded, repeat),
             "octree_build": bench_octree_build(encoded),
-            "big_stack": big_stack.bench_big_stack(),
+            "big_stack": big_stack.bench_big_stack() if big else {"skipped": "left out (--no-big-stack)",
+                                                                        "rows": []},
             "studies": studies.run(data, min(repeat, 3)),
             "sorted_octree": bench_sorted_octree(repeat),
             "raycast": bench_raycast(min(repeat, 3), {
@@ -775,11 +777,13 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True):
               show_default=True, help="Folder holding vhf_head/.")
 @click.option("--repeat", default=5, show_default=True, type=click.IntRange(1, 100))
 @click.option("--out", default="benchmark-results", show_default=True, type=click.Path())
-def main(data, repeat, out):
+@click.option("--big-stack/--no-big-stack", "big", default=True, show_default=True,
+              help="The big-stack section (a 16 GiB stack written once, about 20 minutes of the run).")
+def main(data, repeat, out, big):
     """Time every renderer on vhf_head and write benchmark-results/."""
     if not (Path(data) / "vhf_head").is_dir():
         raise SystemExit(f"error: {Path(data) / 'vhf_head'} is absent; the benchmark needs ../shared/data (or --data)")
-    results = run(data, repeat)
+    results = run(data, repeat, big=big)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "results.json").write_text(json.dumps(results, indent=2, default=float))
