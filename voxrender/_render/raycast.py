@@ -1,13 +1,12 @@
 """Discrete ray casting with connectivity control (Cohen-Or and Kaufman, "Alternating between connectivities").
 
-One discrete ray per pixel of the view contract, all rays stepped together as
-arrays (:class:`voxrender.lines.Stepper`).  A 6-ray visits every voxel its
-continuous ray pierces, so its first object voxel is the contract's; a 26-ray takes
-about half the steps but may skip voxels, slipping through thin walls (a leak) or
-missing the object at its silhouette.  The adaptive ray steps as a 26-ray and
-switches to 6-connectivity (Eqs. 9-13) inside the proximity band, the object
-dilated by one voxel, and back when it leaves: since a 26-step from outside the
-band cannot reach the object, it never misses what the 6-ray finds.
+One discrete ray per pixel of the view contract, all rays stepped together as arrays (the steps of
+:class:`voxrender.lines.Stepper`, its oracle, operation for operation).  A 6-ray visits every voxel its
+continuous ray pierces, so its first object voxel is the contract's; a 26-ray takes about half the steps but may
+skip voxels, slipping through thin walls (a leak) or missing the object at its silhouette.  The adaptive ray
+steps as a 26-ray and switches to 6-connectivity (Eqs. 9-13) inside the proximity band, the object dilated by
+one voxel, and back when it leaves: since a 26-step from outside the band cannot reach the object, it never
+misses what the 6-ray finds.
 
 Each hit pixel takes the depth where its ray enters the hit voxel's cube.
 """
@@ -54,9 +53,7 @@ class Bitmap:
         words = np.zeros((nz, ny, row_bytes // 8), np.uint64)
         x, y = np.arange(nx), np.arange(ny)[:, None]
         for z in range(nz):
-            plane = segments.slice_mask(z)
-            if clip is not None and clip.active:
-                plane &= clip.keeps(x, y, z, view, segments.shape)
+            plane = segments.slice_mask(z) & clip.keeps(x, y, z, view, segments.shape)
             packed = np.packbits(plane, axis=1, bitorder="little")
             words[z].view(np.uint8)[:, :packed.shape[1]] = packed
         return cls(words, segments.shape)
@@ -238,8 +235,9 @@ def _rays_of(view, shape):
 
 def _cast(mask, band, view, connectivity, progress=None, space=None):
     """Step every pixel's ray through ``mask``; return the hit voxel per pixel (or -1), the (logical) step counts
-    and the iterations run.  With ``space`` (:func:`empty_space`), a 26-ray far from the object takes the
-    steps it has room for at once (:meth:`Stepper.jump`), onto the voxel the steps one by one reach.
+    and the iterations run.  With ``space`` (:func:`empty_space`), a 26-ray in empty space takes at once the steps
+    it has room for (its block's, or up to the object's box: :func:`_jump`), onto the voxel the steps one by one
+    reach, and a ray whose whole way out is empty is counted out (:func:`_steps_out`).
     """
     height, width = view.size
     rays, starts, ends, between = _rays_of(view, mask.shape)
@@ -267,18 +265,7 @@ def _cast(mask, band, view, connectivity, progress=None, space=None):
     while r.count:
         inside = (r.q0 <= r.lim0) & (r.q1 <= r.lim1) & (r.q2 <= r.lim2)
         at = np.where(inside, r.index, 0)
-        occupied = bits.get(at) & inside
-        found_at = at
-        for offset, rays_on in r.twins:
-            look = np.flatnonzero(rays_on & ~occupied & inside)
-            if len(look):
-                beside = np.stack(bits.coords(at[look]), axis=1) + offset
-                look = look[np.all(beside >= 0, axis=1)]
-                near_at = at[look] + int(offset @ bits.strides)
-                found = bits.get(near_at)
-                found_at = found_at.copy() if found_at is at else found_at
-                found_at[look[found]] = near_at[found]
-                occupied[look[found]] = True
+        occupied, found_at = _occupied(bits, at, inside, r.twins)
         hit = np.flatnonzero(occupied)
         if len(hit):
             hit_voxel[r.ray[hit]] = np.stack(bits.coords(found_at[hit]), axis=1)
@@ -322,6 +309,26 @@ def _cast(mask, band, view, connectivity, progress=None, space=None):
         steps["6"] += taken_6
         iterations += 1
     return hit_voxel, steps, iterations
+
+
+def _occupied(bits, at, inside, twins):
+    """Whether each ray's voxel (index ``at``, where ``inside`` the volume) is set, or the voxel beside it for a
+    ray along a face between voxel columns (``twins``: the offset to it and the rays it applies to); and the index
+    of the voxel found.
+    """
+    occupied = bits.get(at) & inside
+    found_at = at
+    for offset, rays_on in twins:
+        look = np.flatnonzero(rays_on & ~occupied & inside)
+        if len(look):
+            beside = np.stack(bits.coords(at[look]), axis=1) + offset
+            look = look[np.all(beside >= 0, axis=1)]
+            near_at = at[look] + int(offset @ bits.strides)
+            found = bits.get(near_at)
+            found_at = found_at.copy() if found_at is at else found_at
+            found_at[look[found]] = near_at[found]
+            occupied[look[found]] = True
+    return occupied, found_at
 
 
 class _Bits:
