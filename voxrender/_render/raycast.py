@@ -251,6 +251,7 @@ def _cast(mask, band, view, connectivity, progress=None, space=None):
     band_bits = _Bits(band) if connectivity == "adaptive" else None
     clear = _clear_of_box(stepper, starts, ends, _object_box(mask)) if space is not None else None
     r = _Rays(rays, stepper, bits, mask.shape, clear, twins)
+    del stepper, starts, ends, between              # the rays hold their state now: not twice in memory
     hit_voxel = np.full((height * width, 3), -1, np.int64)
     steps = {"26": 0, "6": 0}
     iterations = 0
