@@ -215,3 +215,25 @@ def test_a_diagonal_line_above_its_interval_goes_up_every_step():
     moved = lines.q - before
     assert above.sum() > n // 10
     assert np.array_equal(moved[holds], np.stack([count, up_y, up_z], axis=1)[holds])
+
+
+def test_the_bitmap_written_run_by_run_is_the_mask_packed():
+    """Runs written into words directly (first and last word's bits, whole words between) give the bits of the
+    mask: rows of several words, runs long and short, touching word edges; the same as the clipped path's slices
+    decoded one at a time with a clip that keeps everything."""
+    from voxrender._render import Clip
+    from voxrender._render.raycast import Bitmap
+
+    rng = np.random.default_rng(5)
+    for nx in (1, 63, 64, 65, 128, 129, 300):
+        mask = rng.random((3, 4, nx)) < 0.5
+        mask[0, 0] = True                               # a row that is one run over all its words
+        mask[1, 1, rng.integers(0, nx, 3)] = False      # long runs cut here and there
+        mask[1, 1, :] |= np.arange(nx) % 128 < 70       # runs across word edges
+        encoded = segments.encode(mask)
+        words = Bitmap.of_segments(encoded).words
+        packed = np.packbits(mask, axis=2, bitorder="little")
+        assert np.array_equal(words.view(np.uint8)[:, :, :packed.shape[2]], packed), nx
+        assert not words.view(np.uint8)[:, :, packed.shape[2]:].any()
+        everything = Clip(x=(0, None))
+        assert np.array_equal(Bitmap.of_segments(encoded, View(scale=1.0), everything).words, words)
