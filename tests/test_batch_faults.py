@@ -305,3 +305,22 @@ def test_a_damaged_or_tampered_cache_entry_is_made_again(tmp_path, stacks):
     batch._record_of(entry).unlink()                 # an entry whose record was never written: made again too
     render_again()
     assert batch._is_intact(entry)
+
+
+def _blas_threads():
+    from threadpoolctl import threadpool_info
+
+    return [pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"]
+
+
+def test_a_worker_keeps_its_share_of_the_cores_for_its_blas():
+    """A worker forked with the batch's BLAS would keep a thread per core, spinning while it waits: two workers
+    then wait on each other's threads (a quarter of a batch's time on two cores)."""
+    pool = batch.executor(2)
+    try:
+        future = pool.submit(_blas_threads)
+        list(pool.as_completed([future]))
+        threads = future.result()
+    finally:
+        pool.close()
+    assert threads and all(count == max(1, (os.cpu_count() or 1) // 2) for count in threads)
