@@ -714,7 +714,8 @@ def _start_worker(parent, jobs):
     """In a worker, as it starts: end it with its batch (:func:`_end_with`), and give its BLAS one ``jobs``-th of
     the cores.  The workers are forked with the batch's BLAS, whose threads (one per core, spinning while they
     wait for work) would make the workers wait on each other's: 24 studies on two workers took 13.4 s with them,
-    9.7 s without (``benchmarks.studies``' batch, medians of 3).  voxrender's matrix products are small (points by a 3 x 3 matrix) and gain nothing from them.
+    9.7 s without (``benchmarks.studies``' batch, medians of 3).  voxrender's matrix products are small (points
+    by a 3 x 3 matrix) and gain nothing from them.
     """
     from threadpoolctl import threadpool_limits
 
