@@ -10,7 +10,7 @@ It measures, on ``vhf_head`` at 300 HU (512 x 512 pictures at scale 1):
   (the skin: the whole head is the object) at the paper's orientations;
 * VTK's CPU ray caster (``vtkFixedPointVolumeRayCastMapper``) on the same volume and views,
   when ``vtk`` is installed (``pip install -e '.[peers]'``);
-* the maximum intensity projection (``voxrender._project``) of the grey volume at the anterior view and
+* the maximum intensity projection (``voxrender.pictures._project``) of the grey volume at the anterior view and
   two oblique ones, beside VTK's (the same caster, maximum-intensity blend), with their ratio;
 * the whole command, DICOM folder to PNG, in a fresh process;
 * the paper's section 6 analysis: render time against N for a sphere and for a
@@ -49,10 +49,11 @@ import numpy as np
 from benchmarks import big_stack, compile_bytecode, studies
 from benchmarks.masks import bench_mask_folder
 from benchmarks.studies import HERE
-from voxrender import io, prep, segments
+from voxrender import io
 from voxrender._render import DEFAULT_METHOD, METHODS, render
-from voxrender.pipeline import Encoded
-from voxrender.view import View
+from voxrender.object import prep, segments, vxs
+from voxrender.object.pipeline import Encoded
+from voxrender.space.view import View
 
 THRESHOLD = 300.0        # bone: a thin, convoluted object (the issue's case)
 SKIN_THRESHOLD = -300.0  # skin: the whole head, a solid, nearly convex object (the paper's kind of case)
@@ -87,7 +88,7 @@ def median_seconds(work, repeat):
 
 def bench_read(path, volume, repeat):
     """Seconds to read the same volume as the DICOM folder, as .nii.gz and as a gzip-encoded .nrrd."""
-    from voxrender import output
+    from voxrender.outputs import output
 
     with tempfile.TemporaryDirectory() as folder:
         nifti = output.write_nifti(Path(folder) / "head.nii.gz", volume.values, volume.spacing)
@@ -240,7 +241,7 @@ PROJECTION_VIEWS = {"anterior": (90.0, 0.0, 0.0), "oblique (30, 10)": (30.0, 10.
 def bench_projection(values, repeat, peer=None, size=512, scale=1.0, views=PROJECTION_VIEWS):
     """Median seconds of ``project`` (MIP) at each view, beside VTK's MIP of the same view (``peer``, a
     :class:`VtkMipPeer`), and their ratio; same run, same volume."""
-    from voxrender._project import project
+    from voxrender.pictures._project import project
 
     rows = []
     for name, angles in views.items():
@@ -275,9 +276,9 @@ def bench_stages(path, repeat, size=512, peer=None):
     process: loading the encoded object (a memory-mapped ``.vxs``), render, grey-level shading (normals at the hit
     points and lighting), the same with ambient occlusion, the paper's depth-gradient shading, and the PNG write;
     the whole picture beside VTK's render of the same view (``peer``); medians of ``repeat``."""
-    from voxrender import output
-    from voxrender._picture import RenderOptions, picture
-    from voxrender.pipeline import PrepOptions, load_segments
+    from voxrender.object.pipeline import PrepOptions, load_segments
+    from voxrender.outputs import output
+    from voxrender.pictures._picture import RenderOptions, picture
 
     loaded = load_segments(path, prepare=PrepOptions(threshold=THRESHOLD))
     result = {}
@@ -409,9 +410,9 @@ def bench_raycast(repeat, cases):
 
 def bench_batch(path, views=36, size=512, separate=True):
     """A turntable of ``views`` pictures: one batch with 1 and 2 workers against separate render commands."""
-    from voxrender._picture import RenderOptions
-    from voxrender.batch import Patterns, items_from, parse_views, run_batch
-    from voxrender.pipeline import PrepOptions, ReadOptions
+    from voxrender.batch.run import Patterns, items_from, parse_views, run_batch
+    from voxrender.object.pipeline import PrepOptions, ReadOptions
+    from voxrender.pictures._picture import RenderOptions
 
     result = {"views": views, "size": size}
     turn = parse_views(turntable_count=views)
@@ -440,7 +441,7 @@ def bench_batch(path, views=36, size=512, separate=True):
 def bench_sorted_octree(repeat, sides=(16, 29, 32, 42)):
     """The linear-octree paper's Table 4: sorted linear octree against the back-face-culled z-buffer,
     solid cubes of ``side``^3 voxels (4 k to 74 k voxels, the paper's range), at its three VPNs."""
-    from voxrender.view import angles_from_vpn
+    from voxrender.space.view import angles_from_vpn
 
     rows = []
     for side in sides:
@@ -472,8 +473,8 @@ def bench_octree(objects, repeat, size=512):
     """Tables II and III: every octree method and the dynamic screen at the papers' VPNs, statistics of the
     traversals, and the one-off cost of the octree and its face adjacency.  ``objects``: name -> (segments,
     scale), ``scale`` None to fit the volume."""
-    from voxrender import octree
-    from voxrender.view import angles_from_vpn
+    from voxrender.object import octree
+    from voxrender.space.view import angles_from_vpn
 
     result, one_off = {}, {}
     for name, (encoded, scale) in objects.items():
@@ -698,7 +699,7 @@ def bench_octree_files(encoded, repeat, size=512):
 def bench_octree_build(encoded, copies=4):
     """``voxrender encode big.vxs --octree`` on the head stacked ``copies`` times along z (512 x 512 x 936 at
     four): wall seconds and peak memory of the process, and the build alone in this one."""
-    from voxrender import octree
+    from voxrender.object import octree
 
     mask = encoded.segments.to_mask()
     big = segments.encode(np.concatenate([mask] * copies, axis=0), encoded.segments.spacing, {"threshold": THRESHOLD})
@@ -707,7 +708,7 @@ def bench_octree_build(encoded, copies=4):
     octree.build_from_segments(big)
     build_s = time.perf_counter() - started
     with tempfile.TemporaryDirectory() as folder:
-        segments.save(big, Path(folder) / "big.vxs")
+        vxs.save(big, Path(folder) / "big.vxs")
         # the command in a fresh interpreter that reports its own peak: VmHWM of its memory map (ru_maxrss would
         # keep the high-water mark of the forked copy of this process from before its exec)
         measure = ("import re, resource, sys\nfrom voxrender.cli import main\ntry:\n    main(sys.argv[1:])\n"

@@ -48,7 +48,8 @@ def phantom_cases():
 
 def head_cases(folder):
     """vhf_head at 300 HU, 512 x 512 at scale 1, the benchmark's views."""
-    from voxrender import io, prep
+    from voxrender import io
+    from voxrender.object import prep
 
     mask = prep.binarize(io.read_volume(folder), 300)[0]
     views = [(-45.0, 15.0), (60.0, 120.0), (30.0, 10.0), (-115.6, 50.4), (-11.8, -46.6), (-52.2, 104.6)]
@@ -57,9 +58,9 @@ def head_cases(folder):
 
 
 def record(cases, methods=METHODS):
-    from voxrender import segments
     from voxrender._render import Clip, render
-    from voxrender.view import View
+    from voxrender.object import segments
+    from voxrender.space.view import View
 
     result = {}
     encoded_masks = {}

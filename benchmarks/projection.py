@@ -41,10 +41,10 @@ def main(data, repeat, pictures):
 
 
 def _write_pictures(values, peer, folder):
-    from voxrender import output
-    from voxrender._project import project
-    from voxrender.display import DisplayWindow
-    from voxrender.view import View
+    from voxrender.outputs import output
+    from voxrender.pictures._project import project
+    from voxrender.pictures.display import DisplayWindow
+    from voxrender.space.view import View
 
     folder.mkdir(parents=True, exist_ok=True)
     low, high = float(values.min()), float(values.max())

@@ -194,7 +194,7 @@ def write_studies(root=None, data=DEFAULT_DATA, count=24, cut_from=None):
 
 def write_manifest(path, studies, views=VIEWS):
     """The batch's manifest: each study with its threshold and the 4 views (preset names, or angle triples)."""
-    from voxrender.view import PRESETS
+    from voxrender.space.view import PRESETS
 
     triples = ";".join(name if PRESETS.get(name) == angles else ",".join(f"{a:g}" for a in angles)
                        for name, angles in views.items())

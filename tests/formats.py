@@ -7,8 +7,8 @@ import nrrd
 import numpy as np
 from dicom_files import write_series
 
-from voxrender import orient
 from voxrender.errors import InputError
+from voxrender.space import orient
 
 SPACING = (0.8, 1.0, 1.25)      # canonical x, y, z in mm
 

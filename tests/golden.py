@@ -43,7 +43,7 @@ def head_labels(samples, data):
     """The label map of vhf_head by HU ranges (``samples.tissue_labels``), with its names and colours as a
     ``.seg.nrrd``, made once into ``samples``."""
     from voxrender.io import read_volume
-    from voxrender.output import write_nrrd
+    from voxrender.outputs.output import write_nrrd
     from voxrender.samples import TISSUES, segment_fields, tissue_labels
 
     target = Path(samples) / "head.seg.nrrd"

@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from voxrender import batch
-from voxrender._picture import RenderOptions
+from voxrender.batch import run as batch
 from voxrender.cli import main
 from voxrender.errors import InputError
-from voxrender.pipeline import PrepOptions, ReadOptions
-from voxrender.view import PRESETS, rotation_matrix
+from voxrender.object import vxs
+from voxrender.object.pipeline import PrepOptions, ReadOptions
+from voxrender.pictures._picture import RenderOptions
+from voxrender.space.view import PRESETS, rotation_matrix
 
 
 @pytest.fixture
@@ -278,11 +279,11 @@ def test_a_manifest_row_naming_no_file_fails_its_row_as_bad_input(tmp_path, stac
 
 
 def test_qc_sheets_are_made_of_slice_stacks_and_an_encoded_object_still_renders(tmp_path, stacks):
-    from voxrender import segments
-    from voxrender.qc import SliceOptions
+    from voxrender.object import segments
+    from voxrender.qc.qc import SliceOptions
 
     encoded = tmp_path / "ball.vxs"
-    segments.save(segments.encode(np.load(stacks / "ball.npy") > 500), encoded)
+    vxs.save(segments.encode(np.load(stacks / "ball.npy") > 500), encoded)
     work = batch.items_from([str(stacks / "box.npy"), str(encoded)], [], ReadOptions(), PrepOptions(threshold=500),
                             RenderOptions(size=(24, 24)), batch.parse_views(["anterior"]), batch.Patterns(),
                             qc_sheet=True, slices=SliceOptions(("axial",)))
@@ -293,7 +294,7 @@ def test_qc_sheets_are_made_of_slice_stacks_and_an_encoded_object_still_renders(
 
 
 def test_a_rerun_keeps_each_pictures_labels_in_the_summary_and_the_page(tmp_path, stacks):
-    from voxrender.prep import LabelSelection
+    from voxrender.object.prep import LabelSelection
 
     labels = np.zeros((12, 12, 12), np.uint8)
     labels[2:6, 2:6, 2:6], labels[7:10, 7:10, 7:10] = 1, 2

@@ -21,11 +21,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from voxrender import batch, output
-from voxrender._picture import RenderOptions
+from voxrender._shared.executors import executor
+from voxrender._shared.files import PARTIAL
+from voxrender.batch import run as batch
 from voxrender.cli import main
 from voxrender.errors import InputError
-from voxrender.pipeline import PrepOptions, ReadOptions
+from voxrender.object.pipeline import PrepOptions, ReadOptions
+from voxrender.pictures._picture import RenderOptions
 
 
 @pytest.fixture
@@ -56,7 +58,7 @@ def pictures(folder):
 
 
 def partials(folder):
-    return [p for p in folder.rglob("*") if output.PARTIAL in p.name]
+    return [p for p in folder.rglob("*") if PARTIAL in p.name]
 
 
 @contextlib.contextmanager
@@ -155,7 +157,7 @@ def test_a_killed_batch_is_finished_by_the_next_run(tmp_path, stacks):
     while any(alive(pid) for pid in workers) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert workers and not any(alive(pid) for pid in workers)              # no orphan goes on writing
-    (out / "ball" / f".turn039.png{output.PARTIAL}dead1234.png").write_bytes(b"\x89PNG half")   # as a kill leaves
+    (out / "ball" / f".turn039.png{PARTIAL}dead1234.png").write_bytes(b"\x89PNG half")   # as a kill leaves
     left = {p.name for p in pictures(out)}
     assert 0 < len(left) < 40 and not (out / "summary.csv").exists() and (out / batch.LOCK_NAME).exists()
     assert all(iio.imread(out / "ball" / name).shape[:2] == (96, 96) for name in left)     # whole, or not there
@@ -221,7 +223,7 @@ def test_a_full_disk_injected(tmp_path, stacks, monkeypatch):
     real_write_bytes, written = type(tmp_path).write_bytes, []
 
     def write_bytes_until_full(path, data):
-        if path.name.endswith(".png") and output.PARTIAL in path.name:
+        if path.name.endswith(".png") and PARTIAL in path.name:
             if len(written) >= 5:
                 real_write_bytes(path, data[:100])         # a partial file, as the disk filled
                 raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
@@ -251,7 +253,7 @@ def test_a_read_only_output_folder_is_refused_before_any_rendering(tmp_path, sta
 
 HOLD_THE_LOCK = textwrap.dedent("""
     import sys
-    from voxrender import batch
+    from voxrender.batch import run as batch
     with batch._folder_lock(sys.argv[1]):
         print("held", flush=True)
         sys.stdin.read()
@@ -316,7 +318,7 @@ def _blas_threads():
 def test_a_worker_keeps_its_share_of_the_cores_for_its_blas():
     """A worker forked with the batch's BLAS would keep a thread per core, spinning while it waits: two workers
     then wait on each other's threads (a quarter of a batch's time on two cores)."""
-    pool = batch.executor(2)
+    pool = executor(2)
     try:
         future = pool.submit(_blas_threads)
         list(pool.as_completed([future]))

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from benchmarks import bench
-from voxrender import segments
-from voxrender.view import View
+from voxrender.object import segments, vxs
+from voxrender.space.view import View
 
 
 def test_scaling_section_runs_on_the_phantoms():
@@ -30,7 +30,7 @@ def test_phantoms():
 
 def test_markdown_report(tmp_path):
     small = tmp_path / "small.vxs"
-    segments.save(segments.encode(bench.thin_shell(16, 6.0)), small)
+    vxs.save(segments.encode(bench.thin_shell(16, 6.0)), small)
     stage = {"render": 0.1, "shade": 0.02}
     stages = {"load_s": 0.001, "write_s": 0.002, "vtk_s": 0.246, "normals_at_encode_s": 1.0, "gradient": stage,
               "gradient + ao": stage, "depth-gradient": stage, "fresh": bench._fresh_stages(small, 1, 32)}

@@ -12,7 +12,7 @@ from conftest import ROOT, data_path
 from dicom_files import write_series
 
 from voxrender.cli import main
-from voxrender.output import write_slices
+from voxrender.outputs.output import write_slices
 from voxrender.samples import SAMPLE_THRESHOLD
 
 
@@ -99,7 +99,7 @@ def test_fit_object_zooms_in(tmp_path, cube_folder):
 
 
 def test_encode_octree_then_render_and_describe_it(tmp_path, cube_folder):
-    from voxrender.pipeline import load_segments
+    from voxrender.object.pipeline import load_segments
 
     result = run("encode", cube_folder, "--threshold", 500, "--octree", "-o", tmp_path / "c.vxo")
     assert result.exit_code == 0, result.output

@@ -11,8 +11,8 @@ import pytest
 from test_cli import assert_bad_input, run
 from test_labels import nested
 
-from voxrender.colours import PRESETS, palette
-from voxrender.output import write_nifti
+from voxrender.outputs.output import write_nifti
+from voxrender.pictures.colours import PRESETS, palette
 
 
 @pytest.fixture
@@ -260,7 +260,7 @@ def test_several_presets_make_one_object_of_labelled_tissues(tmp_path):
 
 def test_classify_takes_the_last_window_that_holds_a_value():
     from voxrender.io import Volume
-    from voxrender.prep import Window, classify
+    from voxrender.object.prep import Window, classify
 
     values = np.array([[[-1000, -200, 100, 400, 2000]]], np.int16)
     labels, _ = classify(Volume(values, (1, 1, 1)), [Window(-300), Window(300, 1000)])
@@ -273,7 +273,7 @@ def test_a_label_map_on_another_grid_is_placed_by_patient_position(tmp_path, ct_
     positions, and then on a grid shifted by one voxel."""
     from formats import stored
 
-    from voxrender import orient
+    from voxrender.space import orient
 
     values, spacing, direction = stored(nested(), "SAL", spacing=(1.0, 1.0, 1.0))
     lps = np.eye(4)
@@ -330,7 +330,7 @@ def test_info_of_a_mask_folder_lists_empty_masks_and_overlaps(tmp_path):
 
 
 def test_a_mask_folder_takes_anatomy_colours_and_a_colour_table_by_name(tmp_path):
-    from voxrender.colours import anatomy_colour
+    from voxrender.pictures.colours import anatomy_colour
 
     folder = tmp_path / "segmentations"
     folder.mkdir()

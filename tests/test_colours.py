@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from voxrender.colours import PRESETS, label_colours, named_colour, palette, preset, read_colour_table
 from voxrender.errors import InputError
+from voxrender.pictures.colours import PRESETS, label_colours, named_colour, palette, preset, read_colour_table
 
 EXPECTED = {1: ("liver", (200, 100, 50)), 7: ("left kidney", (0, 128, 255))}
 

@@ -18,11 +18,11 @@ import numpy as np
 import pytest
 from reference import entries, exact, hits, ties
 
-from voxrender import segments
 from voxrender._render import Clip, render
 from voxrender._render.ftb import render_ftb
 from voxrender._render.preimage import preimage_view
-from voxrender.view import View, angles_from_vpn
+from voxrender.object import segments
+from voxrender.space.view import View, angles_from_vpn
 
 SIZE = (40, 44)
 METHODS = [("ftb", {}), ("btf", {}), ("octree-btf", {}), ("octree-ftb", {}), ("octree-sort", {}), ("zbuffer", {}),

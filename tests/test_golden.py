@@ -6,7 +6,7 @@ import pytest
 from conftest import data_path
 from golden import CASES, GOLDEN, REAL_DATA, render_case
 
-from voxrender.compare import compare
+from voxrender.pictures.compare import compare
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""voxrender.grids: a label map on another grid brought onto its image's by patient position."""
+"""voxrender.space.grids: a label map on another grid brought onto its image's by patient position."""
 
 import math
 import warnings
@@ -6,9 +6,10 @@ import warnings
 import numpy as np
 import pytest
 
-from voxrender import grids
 from voxrender.errors import InputError
-from voxrender.io import Volume, patient_affine
+from voxrender.io import Volume
+from voxrender.space import grids
+from voxrender.space.grids import patient_affine
 
 CENTRE, RADIUS = np.array([20.3, 19.6, 17.8]), 11.0       # mm, patient LPS
 IMAGE = Volume(np.zeros((36, 40, 42), np.int16), (1.0, 1.0, 1.0), {"origin": [0.0, 0.0, 0.0]})

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from voxrender.errors import InputError
-from voxrender.index_page import StudyRow, missing_labels, write_index
-from voxrender.output import write_png
+from voxrender.outputs.output import write_png
+from voxrender.qc.index_page import StudyRow, missing_labels, write_index
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",

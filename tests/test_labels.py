@@ -5,10 +5,11 @@ import pytest
 from conftest import data_path
 from reference import exact_labels
 
-from voxrender import segments
 from voxrender._render import METHODS, Clip, render
-from voxrender.labels import label_at, label_image, label_pixels
-from voxrender.view import View, angles_from_vpn
+from voxrender._shared.mapped import is_mapped
+from voxrender.object import segments, vxs
+from voxrender.pictures.labels import label_at, label_image, label_pixels
+from voxrender.space.view import View, angles_from_vpn
 
 SIZE = (40, 44)
 OPTIONS = {"raycast": {"connectivity": "6"}}       # the discrete rays that keep the contract (test_contract.py)
@@ -117,14 +118,14 @@ def test_label_pixels_count_the_label_image():
 def test_the_store_round_trips_labels_and_colours(tmp_path):
     table = {"3": {"name": "box", "colour": [200, 50, 50]}}
     s = segments.encode_labels(nested(), meta={"labels": [1, 2, 3], "label_table": table})
-    segments.save(s, tmp_path / "l.vxs")
-    loaded = segments.load(tmp_path / "l.vxs")
-    assert np.array_equal(loaded.labels, s.labels) and segments.is_mapped(loaded.labels)
+    vxs.save(s, tmp_path / "l.vxs")
+    loaded = vxs.load(tmp_path / "l.vxs")
+    assert np.array_equal(loaded.labels, s.labels) and is_mapped(loaded.labels)
     assert loaded.meta["label_table"] == table
     assert np.array_equal(loaded.starts, s.starts) and np.array_equal(loaded.offsets, s.offsets)
     single = segments.encode(nested() > 0)
-    segments.save(single, tmp_path / "one.vxs")
-    assert segments.load(tmp_path / "one.vxs").labels is None          # single objects stay as they are
+    vxs.save(single, tmp_path / "one.vxs")
+    assert vxs.load(tmp_path / "one.vxs").labels is None          # single objects stay as they are
 
 
 def test_a_damaged_label_section_is_refused(tmp_path):
@@ -132,9 +133,9 @@ def test_a_damaged_label_section_is_refused(tmp_path):
 
     s = segments.encode_labels(nested())
     s.labels = s.labels[:-1]
-    segments.save(s, tmp_path / "bad.vxs")
+    vxs.save(s, tmp_path / "bad.vxs")
     with pytest.raises(InputError, match="runs and labels disagree"):
-        segments.load(tmp_path / "bad.vxs")
+        vxs.load(tmp_path / "bad.vxs")
 
 
 def test_only_picks_labels_as_one_object():
@@ -148,7 +149,7 @@ def test_only_picks_labels_as_one_object():
 def test_head_label_map_renders_three_colours_each_its_single_label_render():
     """vhf_head split by HU (bone, soft tissue, airway), cut open: three labels, each where it is nearest."""
     from voxrender.io import read_volume
-    from voxrender.prep import label_map
+    from voxrender.object.prep import label_map
     from voxrender.samples import tissue_labels
 
     volume = read_volume(data_path("vhf_head"))

@@ -1,7 +1,7 @@
 """The library speaks Python: its errors name the parameter at fault, never a command-line flag.
 
-Only ``voxrender/cli.py`` and ``voxrender/parse.py`` deal with flags; the CLI turns an error's ``parameter`` into
-its flag when it reports it (``cli.flag``).
+Only ``voxrender/cli/`` and ``voxrender/batch/parse.py`` deal with flags; the CLI turns an error's ``parameter``
+into its flag when it reports it (``cli.flag``).
 """
 
 import ast
@@ -9,10 +9,10 @@ import re
 from pathlib import Path
 
 import voxrender
-from voxrender.output_kinds import OUTPUTS
+from voxrender.outputs.output_kinds import OUTPUTS
 
 PACKAGE = Path(voxrender.__file__).parent
-SPEAK_FLAGS = {PACKAGE / "cli.py", PACKAGE / "parse.py"}
+SPEAK_FLAGS = {*(PACKAGE / "cli").rglob("*.py"), PACKAGE / "batch" / "parse.py"}
 ERRORS = {"InputError", "ValueError", "TypeError"}
 FLAG = re.compile(r"--[A-Za-z]")
 

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from voxrender import lines
+from voxrender.space import lines
 
 
 def pierced(start, end):

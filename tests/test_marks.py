@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from voxrender.marks import draw_marks, edge_letters
-from voxrender.view import PRESETS, View
+from voxrender.pictures.marks import draw_marks, edge_letters
+from voxrender.space.view import PRESETS, View
 
 # The README's preset table, as the letters a radiologist would write at the left, right, top and bottom edges.
 EXPECTED = {"anterior": "RLSI", "posterior": "LRSI", "left": "APSI", "right": "PASI", "superior": "LRAP",

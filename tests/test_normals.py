@@ -7,10 +7,11 @@ import pytest
 from scipy import ndimage
 from scipy.special import erf
 
-from voxrender import normals, segments
 from voxrender._render import render
-from voxrender.shade import surface_normals as depth_gradient_normals
-from voxrender.view import View
+from voxrender._shared.mapped import is_mapped, read_mapped
+from voxrender.object import normals, segments, vxs
+from voxrender.pictures.shade import surface_normals as depth_gradient_normals
+from voxrender.space.view import View
 
 RADIUS = 50
 
@@ -92,14 +93,14 @@ def test_the_vxs_keeps_the_normals(tmp_path):
     mask = values >= 500
     encoded = segments.encode(mask)
     encoded.normals = normals.surface_normals(mask, lambda p: ndimage.map_coordinates(values, p[:, ::-1].T, order=1))
-    segments.save(encoded, tmp_path / "ball.vxs")
-    loaded = segments.load(tmp_path / "ball.vxs")
+    vxs.save(encoded, tmp_path / "ball.vxs")
+    loaded = vxs.load(tmp_path / "ball.vxs")
     assert np.array_equal(loaded.normals.index, encoded.normals.index)
     assert np.array_equal(loaded.normals.packed, encoded.normals.packed)
     assert loaded.meta["normals_from"] == "grey values"
     encoded.normals = None
-    segments.save(encoded, tmp_path / "old.vxs")             # a file without normals still loads
-    assert segments.load(tmp_path / "old.vxs").normals is None
+    vxs.save(encoded, tmp_path / "old.vxs")             # a file without normals still loads
+    assert vxs.load(tmp_path / "old.vxs").normals is None
 
 
 @pytest.mark.parametrize("binary", [False, True])
@@ -181,17 +182,17 @@ def test_normals_of_a_huge_file_are_looked_up_a_block_at_a_time_from_the_file(tm
     mask = np.random.default_rng(11).random((9, 10, 12)) < 0.5
     encoded = segments.encode(mask)
     encoded.normals = normals.surface_normals(mask)
-    segments.save(encoded, tmp_path / "o.vxs")
-    field = segments.load(tmp_path / "o.vxs").normals
+    vxs.save(encoded, tmp_path / "o.vxs")
+    field = vxs.load(tmp_path / "o.vxs").normals
     points = np.random.default_rng(12).uniform(-1.5, [12.5, 10.5, 9.5], (40, 3))
     points[:4] = np.floor(points[:4])
     expected = encoded.normals.at(points)
     reads = []
     monkeypatch.setattr(normals, "RESIDENT_BYTES", 0)
     monkeypatch.setattr(normals, "FILE_BLOCK", block)
-    monkeypatch.setattr(normals, "read_mapped", lambda *args: reads.append(args) or segments.read_mapped(*args))
+    monkeypatch.setattr(normals, "read_mapped", lambda *args: reads.append(args) or read_mapped(*args))
     np.testing.assert_array_equal(field.at(points), expected)
-    assert reads and all(segments.is_mapped(array) for array, *_ in reads)
+    assert reads and all(is_mapped(array) for array, *_ in reads)
 
 
 def test_the_surface_band_is_dilation_minus_erosion():
@@ -248,7 +249,7 @@ def test_cut_faces_take_their_own_normal_and_natural_surfaces_keep_the_gradient(
 
 
 def test_the_dense_sobel_of_a_porous_band_is_the_sampled_one_to_the_last_bit():
-    from voxrender.normals import SOBEL, SOBEL_1D, _dense_sobel_at, _edge_sampler, _gradient_of_samples
+    from voxrender.object.normals import SOBEL, SOBEL_1D, _dense_sobel_at, _edge_sampler, _gradient_of_samples
 
     z, y, x = np.mgrid[:9, :12, :14]
     grid = (30000 + 30000 * np.sin(x / 1.7) * np.cos(y / 2.1 + z / 1.3)).astype(np.uint16)   # the far ends of 16 bits

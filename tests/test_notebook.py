@@ -33,7 +33,7 @@ def test_a_picture_shows_itself_as_png():
 
     zz, yy, xx = np.mgrid[:12, :12, :12]
     ball = (xx - 5.5) ** 2 + (yy - 5.5) ** 2 + (zz - 5.5) ** 2 <= 16
-    from voxrender.segments import encode
+    from voxrender.object.segments import encode
 
     result = voxrender.picture(encode(ball),
                                voxrender.View(30, 20, size=(24, 24)))

@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
 
-from voxrender import octree, samples
+from voxrender import samples
 from voxrender.errors import InputError
+from voxrender.object import octree
 
 
 def staircase_mask():
@@ -54,8 +55,9 @@ def test_flat_arrays_are_consistent():
 
 
 def test_a_vxo_keeps_the_octree_and_its_face_adjacency(tmp_path):
-    from voxrender.pipeline import Encoded, load_segments
-    from voxrender.segments import encode, is_mapped
+    from voxrender._shared.mapped import is_mapped
+    from voxrender.object.pipeline import Encoded, load_segments
+    from voxrender.object.segments import encode
 
     mask = np.random.default_rng(5).random((9, 7, 8)) < 0.4
     made = Encoded(encode(mask))
@@ -114,7 +116,7 @@ def _halve(cells, combine):
 
 @pytest.mark.parametrize("seed", range(6))
 def test_the_object_sized_build_equals_the_dense_one(seed):
-    from voxrender.segments import encode
+    from voxrender.object.segments import encode
 
     rng = np.random.default_rng(seed)
     shape = tuple(rng.integers(1, 19, 3))
@@ -172,8 +174,9 @@ def test_parents_and_white_adjacency():
 
 def test_a_vxo_with_a_missing_or_mismatched_octree_section_is_bad_input(tmp_path):
     """Found by the fuzzing gate: a .vxo whose header lacks an octree section ended in a KeyError (exit 1)."""
-    from voxrender.pipeline import load_segments
-    from voxrender.segments import encode, save
+    from voxrender.object.pipeline import load_segments
+    from voxrender.object.segments import encode
+    from voxrender.object.vxs import save
 
     segments = encode(samples.sphere(12) > samples.SAMPLE_THRESHOLD)
     arrays = octree.sections(octree.build_from_segments(segments))
@@ -191,8 +194,9 @@ def test_a_vxo_with_a_missing_or_mismatched_octree_section_is_bad_input(tmp_path
 def test_a_vxo_with_a_value_out_of_range_in_any_section_is_bad_input(tmp_path, section):
     """A .vxo whose octree arrays fit together but hold a damaged value (a colour, a child, an origin, a digit or
     an adjacency row out of range) sent the octree renderers indexing out of their tables (exit 1)."""
-    from voxrender.pipeline import load_segments
-    from voxrender.segments import encode, save
+    from voxrender.object.pipeline import load_segments
+    from voxrender.object.segments import encode
+    from voxrender.object.vxs import save
 
     segments = encode(samples.sphere(12) > samples.SAMPLE_THRESHOLD)
     arrays = octree.sections(octree.build_from_segments(segments))

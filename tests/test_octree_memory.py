@@ -7,9 +7,9 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from voxrender import octree
 from voxrender.errors import InputError
-from voxrender.segments import encode
+from voxrender.object import octree
+from voxrender.object.segments import encode
 
 
 def _objects():
@@ -79,7 +79,7 @@ def test_ftb_in_groups_of_slabs_is_the_pass_in_one(seed, monkeypatch):
     from voxrender._render import ftb
     from voxrender._render.clip import Clip
     from voxrender._render.preimage import render_preimage
-    from voxrender.view import View
+    from voxrender.space.view import View
 
     rng = np.random.default_rng(seed)
     encoded = encode(rng.random((9, 11, 14)) < rng.uniform(0.1, 0.6))
@@ -105,7 +105,7 @@ def test_ftb_in_groups_of_slabs_is_the_pass_in_one(seed, monkeypatch):
 def test_bitmap_reads_dilates_and_blocks_as_the_bool_mask(shape):
     from voxrender._render.clip import Clip
     from voxrender._render.raycast import Bitmap, empty_space, proximity_band
-    from voxrender.view import View
+    from voxrender.space.view import View
 
     rng = np.random.default_rng(sum(shape))
     mask = rng.random(shape) < 0.05
@@ -126,7 +126,7 @@ def test_bitmap_reads_dilates_and_blocks_as_the_bool_mask(shape):
 def test_a_clipped_octree_is_built_from_the_clipped_runs_as_from_the_clipped_mask(seed):
     from voxrender._render.clip import Clip
     from voxrender._render.octree_btf import _clipped
-    from voxrender.view import View
+    from voxrender.space.view import View
 
     rng = np.random.default_rng(seed)
     mask = rng.random((9, 11, 14)) < 0.4

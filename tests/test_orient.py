@@ -4,11 +4,12 @@ import numpy as np
 import pytest
 from formats import SPACING, phantom, stored, write_dicom, write_metaimage, write_nifti, write_nrrd
 
-from voxrender import orient, segments
-from voxrender._picture import RenderOptions, picture
 from voxrender.errors import InputError
-from voxrender.pipeline import PrepOptions, ReadOptions, load_segments
-from voxrender.view import PRESETS
+from voxrender.object import segments
+from voxrender.object.pipeline import PrepOptions, ReadOptions, load_segments
+from voxrender.pictures._picture import RenderOptions, picture
+from voxrender.space import orient
+from voxrender.space.view import PRESETS
 
 CODES = ["LPS", "RAS", "AIL", "SLA"]          # DICOM's, NIfTI's, and two permuted, flipped ones
 
@@ -94,7 +95,8 @@ def test_a_voxel_keeps_its_patient_position_when_the_volume_is_reoriented(tmp_pa
     """patient_affine of the reoriented volume puts every voxel where the stored volume's affine does."""
     import nibabel
 
-    from voxrender.io import patient_affine, read_volume
+    from voxrender.io import read_volume
+    from voxrender.space.grids import patient_affine
 
     direction = orient.ras_to_lps(orient.direction_of(code))    # the code's axes, written as NIfTI's RAS
     affine = np.eye(4)

@@ -3,14 +3,15 @@ import os
 import numpy as np
 import pytest
 
-from voxrender import output
+from voxrender._shared.files import PARTIAL, atomic_output, check_folder_writable, check_writable, remove_partials
 from voxrender.errors import InputError
+from voxrender.outputs import output
 
 
 def test_atomic_output_leaves_nothing_on_failure(tmp_path):
     target = tmp_path / "out.png"
     with pytest.raises(RuntimeError):
-        with output.atomic_output(target) as tmp:
+        with atomic_output(target) as tmp:
             tmp.write_bytes(b"half")
             raise RuntimeError("boom")
     assert list(tmp_path.iterdir()) == []
@@ -18,7 +19,7 @@ def test_atomic_output_leaves_nothing_on_failure(tmp_path):
 
 def test_atomic_output_has_the_usual_permissions(tmp_path):
     target = tmp_path / "out.bin"
-    with output.atomic_output(target) as tmp:
+    with atomic_output(target) as tmp:
         tmp.write_bytes(b"x")
     mask = os.umask(0)
     os.umask(mask)
@@ -27,9 +28,9 @@ def test_atomic_output_has_the_usual_permissions(tmp_path):
 
 def test_check_writable(tmp_path):
     with pytest.raises(InputError, match="does not exist"):
-        output.check_writable(tmp_path / "no" / "out.png")
+        check_writable(tmp_path / "no" / "out.png")
     with pytest.raises(InputError, match="is a folder"):
-        output.check_writable(tmp_path)
+        check_writable(tmp_path)
 
 
 def test_writers_round_trip(tmp_path):
@@ -52,8 +53,8 @@ def test_atomic_output_writes_beside_its_target_and_a_failed_write_leaves_nothin
 
     target = tmp_path / "out.png"
     with pytest.raises(OSError):
-        with output.atomic_output(target) as tmp:
-            assert tmp.parent == tmp_path and output.PARTIAL in tmp.name       # renamed in the same folder
+        with atomic_output(target) as tmp:
+            assert tmp.parent == tmp_path and PARTIAL in tmp.name       # renamed in the same folder
             tmp.write_bytes(b"half")
             raise OSError(errno.ENOSPC, "No space left on device")
     assert list(tmp_path.iterdir()) == []
@@ -61,16 +62,16 @@ def test_atomic_output_writes_beside_its_target_and_a_failed_write_leaves_nothin
 
 def test_remove_partials_clears_what_a_killed_writer_left(tmp_path):
     (tmp_path / "a").mkdir()
-    left = tmp_path / "a" / f".x.png{output.PARTIAL}k1ll3d.png"
+    left = tmp_path / "a" / f".x.png{PARTIAL}k1ll3d.png"
     left.write_bytes(b"half")
     (tmp_path / "a" / "x.png").write_bytes(b"whole")
     (tmp_path / ".hidden.png").write_bytes(b"the user's")
-    assert output.remove_partials(tmp_path / "a") == 1
+    assert remove_partials(tmp_path / "a") == 1
     assert sorted(p.name for p in tmp_path.rglob("*")) == [".hidden.png", "a", "x.png"]
 
 
 def test_check_folder_writable_tries_a_real_write(tmp_path):
-    output.check_folder_writable(tmp_path)
+    check_folder_writable(tmp_path)
     assert list(tmp_path.iterdir()) == []
     with pytest.raises(InputError, match="cannot write in .*: No such file or directory"):
-        output.check_folder_writable(tmp_path / "missing")
+        check_folder_writable(tmp_path / "missing")

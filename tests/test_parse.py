@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
 
-from voxrender import parse, prep
+from voxrender.batch import parse
 from voxrender.errors import InputError
+from voxrender.object import prep
 
 
 @pytest.mark.parametrize("text", ["1,2", "a,b,c", "1,2,3,4", "1,nan,2"])

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from voxrender._picture import Outputs, RenderOptions, picture, write_outputs
 from voxrender._render import METHODS, Clip
 from voxrender.cli import main
 from voxrender.errors import InputError
-from voxrender.pipeline import PrepOptions, load_segments
-from voxrender.view import View
+from voxrender.object.pipeline import PrepOptions, load_segments
+from voxrender.pictures._picture import Outputs, RenderOptions, picture, write_outputs
+from voxrender.space.view import View
 
 ANGLES = (30.0, 20.0, 10.0)
 # Each method, then clipping, cut, gamma, light and shading: every option both commands declare.
@@ -120,16 +120,16 @@ TOY_OUTPUT = """
 import json, sys
 import numpy as np
 from click.testing import CliRunner
-from voxrender import output, output_kinds
+from voxrender.outputs import output, output_kinds
 
 output_kinds.OUTPUTS["coverage_png"] = output_kinds.OutputKind(
     ".png", "Save the pixels the object covers; in a batch, a pattern.",
     lambda path, result, about: output.write_png(path, result.image.coverage.astype(np.uint8) * 255), "coverage-png")
 
 from voxrender.cli import main
-from voxrender._picture import Outputs, picture, write_outputs
-from voxrender.segments import encode
-from voxrender.view import View
+from voxrender.pictures._picture import Outputs, picture, write_outputs
+from voxrender.object.segments import encode
+from voxrender.space.view import View
 
 folder, commands = sys.argv[1], json.loads(sys.argv[2])
 result = picture(encode(np.ones((4, 4, 4), bool)), View(30, 20, size=(16, 16), scale=2.0))

@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from voxrender import prep
 from voxrender.errors import InputError
 from voxrender.io import Volume
+from voxrender.object import prep
 
 
 def test_crop_is_half_open_in_array_order():
@@ -105,7 +105,7 @@ def test_a_value_equal_to_the_threshold_stays_in_the_object_through_resampling()
 
 
 def test_a_window_keeps_both_bounds_through_resampling():
-    from voxrender.prep import Window
+    from voxrender.object.prep import Window
 
     values = np.zeros((4, 3, 3), np.int16)
     values[:, 1, 1] = [100, 200, 300, 400]
@@ -120,7 +120,7 @@ def test_a_window_keeps_both_bounds_through_resampling():
 
 
 def test_a_label_map_is_resampled_to_the_nearest_label():
-    from voxrender.prep import label_map
+    from voxrender.object.prep import label_map
 
     values = np.zeros((3, 2, 2), np.uint16)
     values[:, 0, 0] = [1, 2, 3]                     # slices 3 mm apart: grid points at 0, 1/3, 2/3, 1 ... 2 slices

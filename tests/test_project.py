@@ -4,10 +4,10 @@ nearest-neighbour look-ups."""
 import numpy as np
 import pytest
 
-from voxrender._project import PROJECTIONS, depth_range, project
 from voxrender._render import Clip
 from voxrender.errors import InputError
-from voxrender.view import View
+from voxrender.pictures._project import PROJECTIONS, depth_range, project
+from voxrender.space.view import View
 
 SAMPLES_PER_VOXEL = 256
 
@@ -175,7 +175,7 @@ def test_bad_input(volume, call, parameter):
 def test_long_volumes_along_any_axis(monkeypatch):
     """Rays along z run through 70 layers, in two runs of faces on two threads, the same as in one; rays along x
     read their layers in blocks (x is next to x in memory)."""
-    import voxrender._project as module
+    import voxrender.pictures._project as module
 
     values = np.random.default_rng(3).integers(-500, 500, size=(70, 6, 5)).astype(np.int16)
     view = View(8, -6, 30, size=(10, 10), scale=1.0)
@@ -222,7 +222,7 @@ def skull(rng, shape=(40, 36, 44)):
 
 def every_face(monkeypatch, values, view, mode, **limits):
     """The projection without skipping: every ray across every face (the path the skipping must equal)."""
-    import voxrender._project as module
+    import voxrender.pictures._project as module
 
     with monkeypatch.context() as patch:
         patch.setattr(module, "_SKIP", False)
@@ -233,7 +233,7 @@ def every_face(monkeypatch, values, view, mode, **limits):
 def test_skipping_changes_nothing(monkeypatch, seed):
     """The maximum and minimum with the blocks skipped are those of every face, bit for bit: random views,
     clip limits, cut depth, slab, another grid, NaN voxels, and the slice buffers or the voxels read straight."""
-    import voxrender._project as module
+    import voxrender.pictures._project as module
 
     rng = np.random.default_rng(seed)
     values = skull(rng)
@@ -253,7 +253,7 @@ def test_skipping_changes_nothing(monkeypatch, seed):
 
 def test_block_bounds_are_bounds():
     """Each ray's bound of a block is above (for the minimum, below) every voxel it meets at the block's faces."""
-    import voxrender._project as module
+    import voxrender.pictures._project as module
 
     rng = np.random.default_rng(5)
     values = skull(rng)

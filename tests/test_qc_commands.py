@@ -8,8 +8,8 @@ import pytest
 from dicom_files import write_series
 from test_cli import assert_bad_input, run
 
-from voxrender.display import DisplayWindow
-from voxrender.output import write_nifti
+from voxrender.outputs.output import write_nifti
+from voxrender.pictures.display import DisplayWindow
 
 SHAPE = (16, 18, 20)                    # z, y, x: 1 mm voxels
 CENTRE = np.array(SHAPE) // 2
@@ -65,7 +65,7 @@ def rgb_of(path):
 
 
 def panel(picture, row, column, size, top=0, gap=4, caption=16):
-    """Picture ``(row, column)`` of a sheet (:func:`voxrender.sheet.sheet`) of ``size`` x ``size`` pictures, whose
+    """Picture ``(row, column)`` of a sheet (:func:`voxrender.qc.sheet.sheet`) of ``size`` x ``size`` pictures, whose
     grid starts ``top`` pixels down.
     """
     y, x = top + gap + row * (size + caption + gap), gap + column * (size + gap)
@@ -102,11 +102,11 @@ def test_slices_equal_the_sheets_slices(tmp_path, ct, seg):
 
 
 def test_slices_command_equals_the_library(tmp_path, ct, seg):
-    from voxrender.pipeline import PrepOptions
-    from voxrender.prep import LabelSelection
-    from voxrender.qc import SliceOptions, slice_pictures
-    from voxrender.sheet import sheet
-    from voxrender.study import load_study
+    from voxrender.object.pipeline import PrepOptions
+    from voxrender.object.prep import LabelSelection
+    from voxrender.qc.qc import SliceOptions, slice_pictures
+    from voxrender.qc.sheet import sheet
+    from voxrender.qc.study import load_study
 
     result = run("slices", ct, "--labels-from", seg, "--size", 40, "--overlay", "outline", "-o", tmp_path / "s.png")
     assert result.exit_code == 0, result.output
@@ -335,8 +335,8 @@ def test_values_out_is_float32_with_nan_where_rays_miss_and_the_window_maps_them
 
 
 def test_a_projection_is_shown_through_one_window_for_every_view(tmp_path, dicom_ct):
-    from voxrender.display import auto_window
     from voxrender.io import read_volume
+    from voxrender.pictures.display import auto_window
 
     window = auto_window(read_volume(dicom_ct).values.max(axis=1))        # its MIP along y: the top of its values
     for view in ("left", "anterior"):
@@ -382,7 +382,7 @@ def test_a_picture_shows_itself_as_png():
     import io
 
     import voxrender
-    from voxrender.segments import encode
+    from voxrender.object.segments import encode
 
     result = voxrender.picture(encode(body_hu() > 0), voxrender.View(30, 20, size=(24, 32), scale=1.0))
     data = result._repr_png_()
@@ -392,8 +392,8 @@ def test_a_picture_shows_itself_as_png():
 
 def test_a_volume_kept_in_its_stored_order_gets_no_patient_directions():
     from voxrender.io import Volume
-    from voxrender.qc import SliceOptions, slice_pictures
-    from voxrender.study import Study
+    from voxrender.qc.qc import SliceOptions, slice_pictures
+    from voxrender.qc.study import Study
 
     def yellow(meta):
         study = Study(Volume(np.arange(6 * 7 * 8, dtype=np.float32).reshape(6, 7, 8), (1.0, 1.0, 1.0), meta))

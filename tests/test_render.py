@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 
-from voxrender import segments
-from voxrender._picture import RenderOptions, picture
 from voxrender._render import METHODS, Method, render
 from voxrender._render.geometry import paint_boxes
 from voxrender.errors import InputError
-from voxrender.view import View
+from voxrender.object import segments
+from voxrender.pictures._picture import RenderOptions, picture
+from voxrender.space.view import View
 
 
 def test_registry_and_errors(ball):

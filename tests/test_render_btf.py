@@ -3,11 +3,11 @@ import pytest
 from reference import exact
 from test_contract import check
 
-from voxrender import segments
 from voxrender._render import render
 from voxrender._render.btf import render_btf
 from voxrender._render.literal.btf import render_btf_literal
-from voxrender.view import View
+from voxrender.object import segments
+from voxrender.space.view import View
 
 VIEWS = [(0, 0, 0, 1.0), (30, 20, 0, 1.3), (-45, 15, 10, 2.0), (60, 120, 0, 0.5), (90, 0, 0, 3.0),
          (30, 10, 0, 1.0), (-170, 63, -40, 0.7), (12, -89, 5, 2.5)]

@@ -2,13 +2,13 @@ import numpy as np
 import pytest
 from test_contract import check
 
-from voxrender import segments
 from voxrender._render import render
 from voxrender._render.btf import render_btf
 from voxrender._render.clip import Clip
 from voxrender._render.ftb import render_ftb
 from voxrender._render.literal.ftb import render_ftb_literal
-from voxrender.view import View
+from voxrender.object import segments
+from voxrender.space.view import View
 
 # The paper's Fig. 10 orientations, both ranges of alpha, gimbal lock, axis-aligned views, scales below
 # 1/sqrt(2) and up to 3.

@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 from reference import exact
 
-from voxrender import segments
 from voxrender._render.clip import Clip
 from voxrender._render.literal.octree_btf import render_octree_btf_literal
 from voxrender._render.literal.octree_ftb import QUAD_TAB, BlockingBitmap, render_octree_ftb_literal
 from voxrender._render.octree_btf import front_to_back_children, render_octree_btf
-from voxrender.view import View, angles_from_vpn
+from voxrender.object import segments
+from voxrender.space.view import View, angles_from_vpn
 
 PAPER_VPNS = [(1, -2, 1), (-1, -2, 1), (1, -1, 0), (0, -1, 0)]  # Zhao and Davis's Tables II and III
 

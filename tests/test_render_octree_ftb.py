@@ -2,13 +2,13 @@ import numpy as np
 import pytest
 from reference import exact
 
-from voxrender import octree, segments
 from voxrender._render.clip import Clip
 from voxrender._render.literal.octree_ftb import B as BLOCKED
 from voxrender._render.literal.octree_ftb import render_octree_ftb_literal
 from voxrender._render.octree_btf import render_octree_btf, visible_axes
 from voxrender._render.octree_ftb import render_octree_ftb, seen_from_the_front
-from voxrender.view import View, angles_from_vpn, vpn_from_angles
+from voxrender.object import octree, segments
+from voxrender.space.view import View, angles_from_vpn, vpn_from_angles
 
 PAPER_VPNS = [(1, -2, 1), (-1, -2, 1), (1, -1, 0), (0, -1, 0)]  # Zhao and Davis's Tables II and III
 # one VPN of each viewing class: XYZ, XY, XZ, YZ, X, Y, Z, with both signs

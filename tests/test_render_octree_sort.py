@@ -2,11 +2,12 @@ import numpy as np
 import pytest
 from reference import exact
 
-from voxrender import octree, samples, segments
+from voxrender import samples
 from voxrender._render.clip import Clip
 from voxrender._render.literal.octree_sort import recode_literal, render_octree_sort_literal, render_zbuffer_literal
 from voxrender._render.octree_sort import decode, recode, render_octree_sort, render_zbuffer, visible_faces, voxel_codes
-from voxrender.view import View
+from voxrender.object import octree, segments
+from voxrender.space.view import View
 
 # The linear-octree paper's Table 2: (x, y, z), Q, Q' for VPN (1.0, 1.1, 1.2), Q' for VPN (-2.0, 1.5, 1.0).
 TABLE_2 = [((3, 3, 3), "00", "00", "60"), ((2, 3, 3), "01", "01", "40"), ((3, 2, 3), "02", "04", "64"),

@@ -2,10 +2,10 @@ import numpy as np
 import pytest
 from reference import entries, exact
 
-from voxrender import segments
 from voxrender._render import render
 from voxrender._render.raycast import proximity_band, render_raycast
-from voxrender.view import View
+from voxrender.object import segments
+from voxrender.space.view import View
 
 VIEWS = [(31, 19, 7, 1.3), (-45, 15, 10, 2.0), (61, 119, 0, 0.7), (12, -80, 5, 2.5), (0, 0, 0, 1.0)]
 
@@ -101,7 +101,7 @@ def test_skipping_empty_space_reaches_the_same_voxels_with_the_same_logical_step
 
 
 def test_a_jump_is_the_steps_one_by_one():
-    from voxrender.lines import Stepper
+    from voxrender.space.lines import Stepper
 
     rng = np.random.default_rng(2)
     n = 5000
@@ -123,11 +123,11 @@ def test_a_jump_is_the_steps_one_by_one():
 
 
 def stepped_one_by_one(mask, band, view, connectivity):
-    """The rays of ``_cast`` stepped by :class:`voxrender.lines.Stepper` one voxel at a time, every ray every
+    """The rays of ``_cast`` stepped by :class:`voxrender.space.lines.Stepper` one voxel at a time, every ray every
     round (no jumps, no closed forms): the hit voxel per pixel and the logical steps.  Views off the axes only
     (no ray along a face between voxel columns)."""
     from voxrender._render.raycast import _rays_of
-    from voxrender.lines import Stepper
+    from voxrender.space.lines import Stepper
 
     rays, starts, ends, between = _rays_of(view, mask.shape)
     assert not between.any()
@@ -197,7 +197,7 @@ def test_a_diagonal_line_above_its_interval_goes_up_every_step():
     """At alpha = -45 two extents are equal to rounding, and a line's error can sit at or above the top of its
     interval, where it goes up at every step (the closed form's extra case): the steps one by one agree."""
     from voxrender._render.raycast import _closed
-    from voxrender.lines import Stepper
+    from voxrender.space.lines import Stepper
 
     rng = np.random.default_rng(3)
     n = 4000

@@ -13,13 +13,13 @@ from pydicom.uid import SecondaryCaptureImageStorage
 from seg_files import SOURCE_DEFAULTS, blobs, write_ct
 
 import voxrender
-from voxrender import output_kinds
-from voxrender._picture import Outputs, RenderOptions, about, picture, write_outputs
 from voxrender.errors import InputError
 from voxrender.io import Volume
-from voxrender.pipeline import PrepOptions, load_segments
-from voxrender.prep import LabelSelection
-from voxrender.secondary_capture import DicomStudy, describe, dicom_study, write_secondary_capture
+from voxrender.object.pipeline import PrepOptions, load_segments
+from voxrender.object.prep import LabelSelection
+from voxrender.outputs import output_kinds
+from voxrender.outputs.secondary_capture import DicomStudy, describe, dicom_study, write_secondary_capture
+from voxrender.pictures._picture import Outputs, RenderOptions, about, picture, write_outputs
 
 SHAPE = (12, 20, 24)
 
@@ -46,7 +46,7 @@ def test_a_picture_of_a_ct_joins_its_study_in_a_new_series(ct, tmp_path):
     assert len(study.images) == SHAPE[0] and study.series_uid == sources[0].SeriesInstanceUID
     encoded = load_segments(folder, prepare=PrepOptions(threshold=300))
     options = RenderOptions(size=(48, 64))
-    result = picture(encoded, options.view(*voxrender.view.PRESETS["anterior"]), options)
+    result = picture(encoded, options.view(*voxrender.space.view.PRESETS["anterior"]), options)
     report = {**about(encoded.segments), "dicom_study": study}
     out = tmp_path / "ball.dcm"
     write_outputs(result, Outputs(tmp_path / "ball.png", dicom=out), report)
@@ -147,9 +147,9 @@ def test_a_folder_of_two_series_is_chosen_from(ct, tmp_path):
 
 def test_what_is_not_dicom_has_no_study_to_join(tmp_path):
     nifti = tmp_path / "ct.nii.gz"
-    voxrender.output.write_nifti(nifti, np.zeros((2, 3, 4), np.int16))
+    voxrender.outputs.output.write_nifti(nifti, np.zeros((2, 3, 4), np.int16))
     pngs = tmp_path / "pngs"
-    voxrender.output.write_slices(np.zeros((2, 3, 4), np.uint16), pngs)
+    voxrender.outputs.output.write_slices(np.zeros((2, 3, 4), np.uint16), pngs)
     for path in (nifti, pngs, tmp_path / "missing"):
         with pytest.raises(InputError) as error:
             dicom_study(path)
@@ -160,7 +160,7 @@ def test_what_is_not_dicom_has_no_study_to_join(tmp_path):
 
 
 def test_the_dicom_output_needs_its_study(tmp_path):
-    ball = voxrender.segments.encode(np.ones((3, 3, 3), bool))
+    ball = voxrender.object.segments.encode(np.ones((3, 3, 3), bool))
     result = picture(ball, RenderOptions(size=(8, 8)).view())
     with pytest.raises(InputError, match="name that series") as error:
         write_outputs(result, Outputs(tmp_path / "p.png", dicom=tmp_path / "p.dcm"), about(ball))

@@ -11,7 +11,8 @@ from seg_files import blobs, write_ct, write_ct_and_seg
 from test_cli import assert_bad_input, run
 
 from voxrender import io
-from voxrender.output import write_nifti
+from voxrender.outputs.output import write_nifti
+from voxrender.space.grids import patient_affine
 
 NAMES = ["liver", "spleen", "kidney_left"]
 
@@ -78,7 +79,7 @@ def test_a_ct_with_its_rtstruct_renders_the_label_image_of_the_masks_it_outlines
 
     ct, _, nifti = study
     volume = io.read_volume(ct)
-    structure_set = write_rtstruct_of_labels(tmp_path / "rs.dcm", blobs(), io.patient_affine(volume), NAMES,
+    structure_set = write_rtstruct_of_labels(tmp_path / "rs.dcm", blobs(), patient_affine(volume), NAMES,
                                              [(220, 60, 40), (60, 160, 60), (40, 90, 200)],
                                              **references_of(sorted(ct.iterdir())))
     from_map, _ = label_image(tmp_path, "map", ct, "--labels-from", nifti)

@@ -1,8 +1,9 @@
 import numpy as np
 import pytest
 
-from voxrender import segments
+from voxrender._shared.mapped import is_mapped
 from voxrender.errors import InputError
+from voxrender.object import segments, vxs
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -58,9 +59,9 @@ def test_file_round_trip_is_memory_mapped(tmp_path):
     rng = np.random.default_rng(4)
     mask = rng.random((5, 6, 7)) < 0.3
     path = tmp_path / "obj.vxs"
-    segments.save(segments.encode(mask, (0.5, 0.5, 0.5), {"threshold": 300.0}), path)
-    loaded = segments.load(path)
-    assert segments.is_mapped(loaded.starts)
+    vxs.save(segments.encode(mask, (0.5, 0.5, 0.5), {"threshold": 300.0}), path)
+    loaded = vxs.load(path)
+    assert is_mapped(loaded.starts)
     assert np.array_equal(loaded.to_mask(), mask)
     assert loaded.spacing == (0.5, 0.5, 0.5) and loaded.meta["threshold"] == 300.0
     assert [p.name for p in tmp_path.iterdir()] == ["obj.vxs"]  # no temporary left behind
@@ -70,13 +71,13 @@ def test_load_rejects_other_and_truncated_files(tmp_path):
     other = tmp_path / "not.vxs"
     other.write_bytes(b"hello")
     with pytest.raises(InputError, match="not a voxrender"):
-        segments.load(other)
+        vxs.load(other)
     good = tmp_path / "good.vxs"
-    segments.save(segments.encode(np.ones((4, 4, 4), bool)), good)
+    vxs.save(segments.encode(np.ones((4, 4, 4), bool)), good)
     cut = tmp_path / "cut.vxs"
     cut.write_bytes(good.read_bytes()[:-100])
     with pytest.raises(InputError, match="damaged"):
-        segments.load(cut)
+        vxs.load(cut)
 
 
 def test_encode_rejects_2d():
@@ -112,19 +113,19 @@ def _rewritten(path, change, arrays=None):
     (name: new values of the same size and type), written back with the header's new length."""
     import json
 
-    header, mapped = segments.read_sections(path)
+    header, mapped = vxs.read_sections(path)
     data = {name: np.array(array) for name, array in mapped.items()}
     for name, values in (arrays or {}).items():
         data[name][...] = values
     change(header)
     text = json.dumps(header).encode()
-    start = -(-(len(segments.MAGIC) + 8 + len(text)) // 64) * 64
+    start = -(-(len(vxs.MAGIC) + 8 + len(text)) // 64) * 64
     body = bytearray(max(start + spec["offset"] + data[name].nbytes for name, spec in header["arrays"].items()
                          if name in data))
     for name, spec in header["arrays"].items():
         if name in data:
             body[start + spec["offset"]:start + spec["offset"] + data[name].nbytes] = data[name].tobytes()
-    head = segments.MAGIC + np.uint64(len(text)).tobytes() + text
+    head = vxs.MAGIC + np.uint64(len(text)).tobytes() + text
     path.write_bytes(head + bytes(body[len(head):]))
     return path
 
@@ -155,17 +156,17 @@ def test_a_damaged_vxs_file_is_bad_input(tmp_path, change, arrays, message):
     """Each was an internal error (exit 1) when loaded or rendered: a meta that is no table (found by the fuzzing
     gate), a shape or spacing of the wrong kind, arrays outside the file or runs outside the grid."""
     path = tmp_path / "v.vxs"
-    segments.save(segments.encode(np.ones((4, 4, 4), bool)), path)
+    vxs.save(segments.encode(np.ones((4, 4, 4), bool)), path)
     _rewritten(path, change, arrays)
     with pytest.raises(InputError, match=f"v.vxs is a damaged .vxs file \\({message}"):
-        segments.load(path)
+        vxs.load(path)
 
 
 def test_a_header_length_beyond_the_file_is_bad_input(tmp_path):
     path = tmp_path / "v.vxs"
-    segments.save(segments.encode(np.ones((4, 4, 4), bool)), path)
+    vxs.save(segments.encode(np.ones((4, 4, 4), bool)), path)
     whole = bytearray(path.read_bytes())
-    whole[len(segments.MAGIC):len(segments.MAGIC) + 8] = np.uint64(2**63).tobytes()
+    whole[len(vxs.MAGIC):len(vxs.MAGIC) + 8] = np.uint64(2**63).tobytes()
     path.write_bytes(bytes(whole))
     with pytest.raises(InputError, match="its header of 9223372036854775808 bytes is longer than the file"):
-        segments.load(path)
+        vxs.load(path)

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from voxrender import shade
 from voxrender.errors import InputError
+from voxrender.pictures import shade
 
 
 def test_gradient_of_a_tilted_plane():

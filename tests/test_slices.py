@@ -7,20 +7,12 @@ import pytest
 from conftest import data_path
 from scipy import ndimage
 
-from voxrender.display import CT_WINDOWS, DisplayWindow
 from voxrender.errors import InputError
 from voxrender.io import Volume
-from voxrender.marks import edge_letters
-from voxrender.slices import (
-    PLANES,
-    SlicePoint,
-    label_slices,
-    plane_image,
-    round_length,
-    slice_index,
-    slice_picture,
-)
-from voxrender.view import View
+from voxrender.pictures.display import CT_WINDOWS, DisplayWindow
+from voxrender.pictures.marks import edge_letters
+from voxrender.qc.slices import PLANES, SlicePoint, label_slices, plane_image, round_length, slice_index, slice_picture
+from voxrender.space.view import View
 
 SHAPE = (6, 7, 8)                         # nz, ny, nx: every axis its own length, so a wrong turn shows
 BLACK = DisplayWindow(1000, 10)           # every value below 995 is black
@@ -177,7 +169,7 @@ def test_many_labels_take_their_colours_from_one_lookup():
 
 
 def test_labels_without_a_table_take_the_palette():
-    from voxrender.colours import label_colours
+    from voxrender.pictures.colours import label_colours
 
     labels = np.zeros((4, 4), np.uint8)
     labels[:2] = 5
@@ -325,7 +317,7 @@ def test_vhf_head_in_three_planes():
 
 
 def test_a_mask_is_label_one_and_a_legend_needs_no_overlay():
-    from voxrender.colours import label_colours
+    from voxrender.pictures.colours import label_colours
 
     mask = np.zeros((40, 60), bool)
     mask[5:10, 5:10] = True

@@ -1,5 +1,5 @@
-"""Streaming encode (voxrender.stream): a stack encoded a slab at a time gives the in-memory encode's file, byte for
-byte, in every orientation and with every step of the selection; in worker processes too.
+"""Streaming encode (voxrender.object.stream): a stack encoded a slab at a time gives the in-memory encode's file, byte
+for byte, in every orientation and with every step of the selection; in worker processes too.
 """
 
 import itertools
@@ -7,10 +7,11 @@ import itertools
 import numpy as np
 import pytest
 
-from voxrender import orient, prep, segments
 from voxrender.errors import InputError
-from voxrender.pipeline import PrepOptions, ReadOptions, load_segments
-from voxrender.stream import encode_stack
+from voxrender.object import prep, vxs
+from voxrender.object.pipeline import PrepOptions, ReadOptions, load_segments
+from voxrender.object.stream import encode_stack
+from voxrender.space import orient
 
 SHAPE = (13, 11, 15)
 
@@ -33,7 +34,7 @@ def same_file(tmp_path, name, read, prepare, slabs=(1, 3), jobs=1, scheduler=Non
         encode_stack(tmp_path / name, streamed, read, prepare, slab_voxels=slab * plane,
                      jobs=jobs, scheduler=scheduler)
         assert streamed.read_bytes() == expected.read_bytes(), (name, read, prepare, slab)
-    return segments.load(expected)
+    return vxs.load(expected)
 
 
 CODES = ["".join(letters) for axes in itertools.permutations(["LR", "PA", "SI"])
@@ -193,7 +194,7 @@ def test_binning_in_memory_is_the_preview_of_the_whole_and_labels_are_not_binned
     done = runner.invoke(main, ["encode", str(tmp_path / "v.npy"), "--threshold", "1000", "--bin", "2",
                                 "-o", str(tmp_path / "b.vxs")])
     assert done.exit_code == 0 and "7x5x6 voxels" in done.output and "binned by 2" in done.output, done.output
-    assert segments.load(tmp_path / "b.vxs").spacing == (2.0, 2.0, 2.0)
+    assert vxs.load(tmp_path / "b.vxs").spacing == (2.0, 2.0, 2.0)
     np.save(tmp_path / "l.npy", (porous() > 1000).astype(np.uint8))
     for args in (["render", str(tmp_path / "l.npy"), "--labels"], ["slices", str(tmp_path / "v.npy")]):
         done = runner.invoke(main, [*args, "--bin", "2", "-o", str(tmp_path / "x.png")])
@@ -223,7 +224,7 @@ def test_info_says_how_a_stack_would_be_streamed(tmp_path):
 
 
 def test_the_progress_bar_moves_as_each_slab_is_encoded(tmp_path, monkeypatch):
-    from voxrender import stream
+    from voxrender.object import stream
 
     np.save(tmp_path / "v.npy", porous())
     done, seen = [], []
@@ -258,7 +259,7 @@ def test_the_survey_before_the_first_slab_holds_no_more_than_a_slab(tmp_path, dt
     import tracemalloc
 
     from voxrender.io import open_stack
-    from voxrender.stream import _survey
+    from voxrender.object.stream import _survey
 
     values = (np.random.default_rng(1).normal(1000, 300, (560, 32, 32))).astype(dtype)
     np.save(tmp_path / "v.npy", values)

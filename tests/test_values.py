@@ -13,13 +13,13 @@ from click.testing import CliRunner
 from conftest import data_path
 from dicom_files import write_series
 
-from voxrender import prep
-from voxrender._picture import RenderOptions, picture
 from voxrender._render import METHODS
 from voxrender.cli import main
 from voxrender.io import Volume, read_volume
-from voxrender.segments import encode
-from voxrender.view import PRESETS, View
+from voxrender.object import prep
+from voxrender.object.segments import encode
+from voxrender.pictures._picture import RenderOptions, picture
+from voxrender.space.view import PRESETS, View
 
 
 def run(*args):
@@ -97,7 +97,7 @@ def test_a_nan_voxel_keeps_the_grey_normals():
     """Resampled, the normals come from a cubic spline of the values, whose prefilter spread one NaN to all."""
     from scipy import ndimage
 
-    from voxrender.pipeline import encode_volume
+    from voxrender.object.pipeline import encode_volume
 
     zz, yy, xx = np.mgrid[:24, :24, :24] - 11.5
     ball = ndimage.gaussian_filter(100.0 * (np.sqrt(xx ** 2 + yy ** 2 + zz ** 2) < 8), 1).astype(np.float32)
@@ -272,7 +272,7 @@ def test_vhf_head_keeps_its_otsu_threshold():
 def test_a_slice_of_nan_resamples_without_a_warning():
     """Found by the fuzzing gate: scikit-image's warp clipped each resampled slice to its nanmin, which warned
     'All-NaN slice encountered' for a slice of NaN; linear interpolation needs no clip."""
-    from voxrender.pipeline import PrepOptions, encode_volume
+    from voxrender.object.pipeline import PrepOptions, encode_volume
 
     values = np.full((6, 12, 12), 100, np.float32)
     values[:, 3:9, 3:9] = 900

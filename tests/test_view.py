@@ -3,7 +3,7 @@ import pytest
 from reference import rotation
 
 from voxrender.errors import InputError
-from voxrender.view import (
+from voxrender.space.view import (
     PRESETS,
     View,
     angles_from_matrix,
@@ -136,7 +136,7 @@ def test_view_rejects_bad_values():
 def test_axis_aligned_views_have_exact_matrices():
     # cos 90 computed in floating point is 6e-17; the octree methods read the viewing class (which VPN
     # components are zero) from the matrix, and rays along voxel faces must stay on them.
-    from voxrender.view import rotation_matrix
+    from voxrender.space.view import rotation_matrix
     for alpha in (-180, -90, 0, 90, 270):
         for beta in (0, 90, 180):
             matrix = rotation_matrix(alpha, beta, 90)
@@ -147,7 +147,7 @@ def test_a_box_thinner_than_a_pixel_is_framed_on_a_pixel_centre():
     """A slab one voxel thick seen edge-on at under a pixel per voxel: its middle on a pixel centre, so a ray meets
     it; a box a pixel wide or more keeps its middle at the picture's middle, as before.
     """
-    from voxrender.view import frame_together
+    from voxrender.space.view import frame_together
 
     shape, box = (50, 600, 1), ((0, 49), (0, 599), (0, 0))
     for size in ((512, 512), (511, 511), (300, 200)):

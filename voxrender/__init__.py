@@ -9,16 +9,18 @@ What a script needs is here, imported on first use (so that ``voxrender --help``
     encoded = voxrender.load_segments("ct/", prepare=voxrender.PrepOptions(threshold=300))
     result = voxrender.picture(encoded.segments, voxrender.View(90, 90, size=(512, 512)))
 
-The pipeline, one module per step::
+The pipeline, one module per step, each in the folder of its layer::
 
-    io.read_volume ─► prep.binarize ─► segments.encode ─► _render.render ─► shade.shade
-        ─► output.write_png
+    io.read_volume ─► object.prep.binarize ─► object.segments.encode ─► _render.render ─► pictures.shade.shade
+        ─► outputs.output.write_png
 
-``_picture.picture`` is the render and shade step of every command; ``docs/design.md`` has the whole design.
+``pictures._picture.picture`` is the render and shade step of every command; ``docs/design.md`` has the whole
+design.
 
 >>> import numpy as np
 >>> import voxrender
->>> from voxrender import segments, shade
+>>> from voxrender.object import segments
+>>> from voxrender.pictures import shade
 >>> zz, yy, xx = np.mgrid[:16, :16, :16]
 >>> mask = (xx - 7.5) ** 2 + (yy - 7.5) ** 2 + (zz - 7.5) ** 2 <= 36
 >>> image = voxrender.render(segments.encode(mask), voxrender.View(size=(32, 32), scale=1.5), method="btf")
@@ -37,25 +39,25 @@ _PUBLIC = {
     "read_volume": ".io",
     "Volume": ".io",
     "READERS": ".io",
-    "load_segments": ".pipeline",
-    "encode_volume": ".pipeline",
-    "ReadOptions": ".pipeline",
-    "PrepOptions": ".pipeline",
+    "load_segments": ".object.pipeline",
+    "encode_volume": ".object.pipeline",
+    "ReadOptions": ".object.pipeline",
+    "PrepOptions": ".object.pipeline",
     "render": "._render",
     "METHODS": "._render",
     "DepthImage": "._render",
     "Clip": "._render",
-    "picture": "._picture",
-    "RenderOptions": "._picture",
-    "View": ".view",
+    "picture": ".pictures._picture",
+    "RenderOptions": ".pictures._picture",
+    "View": ".space.view",
     "InputError": ".errors",
-    "load_study": ".study",
-    "Study": ".study",
-    "project": "._project",
-    "DisplayWindow": ".display",
-    "SliceOptions": ".qc",
-    "slice_pictures": ".qc",
-    "qc_sheet": ".qc",
+    "load_study": ".qc.study",
+    "Study": ".qc.study",
+    "project": ".pictures._project",
+    "DisplayWindow": ".pictures.display",
+    "SliceOptions": ".qc.qc",
+    "slice_pictures": ".qc.qc",
+    "qc_sheet": ".qc.qc",
 }
 
 __all__ = ["__version__", *_PUBLIC]

@@ -6,14 +6,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ._picture import RenderOptions, picture
 from ._render import DEFAULT_METHOD
 from .errors import InputError
 from .io import Volume, check_spacing
 from .io._shared import real_numbers
-from .pipeline import PrepOptions, ReadOptions, encode_volume, load_segments
-from .prep import LabelSelection, otsu_threshold
-from .view import PRESETS, View
+from .object.pipeline import PrepOptions, ReadOptions, encode_volume, load_segments
+from .object.prep import LabelSelection, otsu_threshold
+from .pictures._picture import RenderOptions, picture
+from .space.view import PRESETS, View
 
 
 def snapshot(source, *, threshold=None, view="anterior", labels=None, spacing=None, size=(512, 512), scale=None,
@@ -27,12 +27,12 @@ def snapshot(source, *, threshold=None, view="anterior", labels=None, spacing=No
         grey values ``[z, y, x]`` themselves (a bool array is the object).  An array or ``Volume`` is taken in its
         stored order, as the canonical patient frame (x toward the patient's left, y toward the back, z up).
     threshold : float, Window or callable, optional
-        The grey values of the object: ``value >= threshold``, a :class:`~voxrender.prep.Window`, or a function
-        of the values (default: Otsu's threshold, :func:`~voxrender.prep.otsu_threshold`).  With ``labels`` it
+        The grey values of the object: ``value >= threshold``, a :class:`~voxrender.object.prep.Window`, or a function
+        of the values (default: Otsu's threshold, :func:`~voxrender.object.prep.otsu_threshold`).  With ``labels`` it
         applies only when given.
     view : str, (alpha, beta, gamma) or View
-        A named view (``"anterior"``, ``"left"``, ... see :data:`voxrender.view.PRESETS`), the rotation angles
-        in degrees, or a :class:`~voxrender.view.View` (its size and scale then hold).
+        A named view (``"anterior"``, ``"left"``, ... see :data:`voxrender.space.view.PRESETS`), the rotation angles
+        in degrees, or a :class:`~voxrender.space.view.View` (its size and scale then hold).
     labels : True, sequence of int, str, Path, ndarray or Volume, optional
         ``True``: ``source`` is a label map, each label drawn in its colour; a sequence of labels: only those;
         a path, array or ``Volume``: a label map on ``source``'s grid, drawn in colour (a CT and its
@@ -46,7 +46,7 @@ def snapshot(source, *, threshold=None, view="anterior", labels=None, spacing=No
     method : str
         A renderer of :data:`voxrender.METHODS`.
     **options
-        Further fields of :class:`~voxrender._picture.RenderOptions` (``shading``, ``colour``, ``legend``,
+        Further fields of :class:`~voxrender.pictures._picture.RenderOptions` (``shading``, ``colour``, ``legend``,
         ``clip``, ``orientation_marks`` ...).
 
     Returns

@@ -3,7 +3,7 @@
 Each phantom is a grey-value volume ``[z, y, x]`` of unsigned 16-bit "stored
 values": about 0 for air and about 1000 for the object, so a threshold of 500
 separates them.  The functions return arrays; ``voxrender samples`` writes each as a
-folder of 16-bit PNG slices (:func:`voxrender.output.write_slices`), the format a user's
+folder of 16-bit PNG slices (:func:`voxrender.outputs.output.write_slices`), the format a user's
 own image folder would have.
 
 Beside them the package ships one real CT, VTK's quarter-resolution head (:func:`headsq_path`), which
@@ -100,13 +100,13 @@ def cylinder(n=64, radius=None, axis=(0.25, 0.15, 0.8)):
     """An oblique solid cylinder voxelized by sweeping (the line-voxelization paper's opening example).
 
     A voxelized disc in the first slice is swept along a 26-connected 3-D line
-    (:func:`voxrender.lines.line26`): the cylinder is every disc voxel moved by every line voxel.
+    (:func:`voxrender.space.lines.line26`): the cylinder is every disc voxel moved by every line voxel.
 
     >>> v = cylinder(32)
     >>> v.shape, bool(v[0, 7, 7] > 500), bool(v[-1, 7, 7] < 500)
     ((32, 32, 32), True, True)
     """
-    from .lines import line26
+    from .space.lines import line26
 
     radius = 0.18 * n if radius is None else radius
     centre = int(round(radius)) + 1
@@ -148,7 +148,7 @@ TISSUES = {1: ("bone", (241, 214, 145)), 2: ("soft tissue", (192, 104, 88)), 3: 
 
 def segment_fields(table):
     """The header fields of a 3D Slicer ``.seg.nrrd`` naming and colouring labels ``{label: (name, (r, g, b))}``
-    (for :func:`voxrender.output.write_nrrd`).
+    (for :func:`voxrender.outputs.output.write_nrrd`).
     """
     fields = {}
     for k, (label, (name, colour)) in enumerate(sorted(table.items())):

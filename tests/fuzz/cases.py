@@ -20,6 +20,8 @@ from dataclasses import dataclass, field
 import nibabel
 import numpy as np
 
+from voxrender.object import vxs
+
 from . import seeds
 
 # Values a number in a header may be given: zero, negative, not finite, huge, not a number at all.
@@ -216,12 +218,11 @@ def npy_header_mutation(rng, path):
 
 def vxs_header_mutation(rng, path):
     """Change one field of a ``.vxs`` file's JSON header and write the file again around the same arrays."""
-    from voxrender import segments
 
     raw = path.read_bytes()
-    length = int(np.frombuffer(raw[len(segments.MAGIC):len(segments.MAGIC) + 8], "<u8")[0])
-    header = json.loads(raw[len(segments.MAGIC) + 8:len(segments.MAGIC) + 8 + length])
-    start = _aligned(len(segments.MAGIC) + 8 + length)
+    length = int(np.frombuffer(raw[len(vxs.MAGIC):len(vxs.MAGIC) + 8], "<u8")[0])
+    header = json.loads(raw[len(vxs.MAGIC) + 8:len(vxs.MAGIC) + 8 + length])
+    start = _aligned(len(vxs.MAGIC) + 8 + length)
     arrays = sorted(header["arrays"])
     kind = rng.choice(["shape", "spacing", "count", "offset", "dtype", "drop array", "meta"])
     if kind == "shape":
@@ -247,15 +248,13 @@ def vxs_header_mutation(rng, path):
         value = rng.choice([None, [], "x"])
         header["meta"] = value
     text = json.dumps(header).encode()
-    prefix = segments.MAGIC + np.uint64(len(text)).tobytes() + text
+    prefix = vxs.MAGIC + np.uint64(len(text)).tobytes() + text
     path.write_bytes(prefix + bytes(_aligned(len(prefix)) - len(prefix)) + raw[start:])
     return f"vxs {kind}={value!r}"
 
 
 def _aligned(size):
-    from voxrender import segments
-
-    return -(-size // segments._ALIGN) * segments._ALIGN
+    return -(-size // vxs._ALIGN) * vxs._ALIGN
 
 
 # ---- text headers (NRRD, MetaImage): key: value ----

@@ -12,6 +12,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from voxrender.object import vxs
+
 from . import cases
 
 VOXRENDER = Path(sys.executable).with_name("voxrender")
@@ -116,13 +118,11 @@ def _only_picture(out, dicom=False):
 
 def _only_segments(out):
     """Whether ``out`` holds ``x.vxs``, nothing else (no parts of a streamed encode left behind), and
-    :func:`voxrender.segments.load` reads it."""
+    :func:`voxrender.object.vxs.load` reads it."""
     if sorted(out.rglob("*")) != [out / "x.vxs"]:
         return False
     try:
-        from voxrender import segments
-
-        segments.load(out / "x.vxs")
+        vxs.load(out / "x.vxs")
         return True
     except Exception:  # noqa: BLE001 - any failure to read the file is what this looks for
         return False

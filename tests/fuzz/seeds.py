@@ -178,7 +178,8 @@ def dicom_rtstruct(case, values, spacing=SPACING, direction=None):
     that they are planar as a planning system's are) written by pydicom; ``--labels-from`` the RTSTRUCT."""
     from rtstruct_files import references_of, write_rtstruct_of_labels
 
-    from voxrender.io import patient_affine, read_volume
+    from voxrender.io import read_volume
+    from voxrender.space.grids import patient_affine
 
     _ct_for_labels(case, values, spacing, direction)
     stored = read_volume(case / INPUT / "ct", reorient=False)   # traced in the series' own slices, as it is read
@@ -271,7 +272,7 @@ def ome_zarr(case, values, spacing=SPACING, direction=None, version="0.4", level
     micrometres, the direction the axes' anatomical orientation (NGFF RFC-4)."""
     import zarr
 
-    from voxrender import orient
+    from voxrender.space import orient
 
     path = case / INPUT / "x.ome.zarr"
     zarr_format = 2 if version == "0.4" else 3
@@ -310,7 +311,7 @@ def npy(case, values, spacing=SPACING, direction=None):
 def segments_file(case, values, spacing=SPACING, direction=None, octree=False):
     """voxrender's own ``.vxs`` (or ``.vxo``, with its octree), written by ``Encoded.save``."""
     from voxrender.io import Volume
-    from voxrender.pipeline import Encoded, PrepOptions, encode_volume
+    from voxrender.object.pipeline import Encoded, PrepOptions, encode_volume
 
     path = case / INPUT / ("x.vxo" if octree else "x.vxs")
     finite = values[np.isfinite(values)]

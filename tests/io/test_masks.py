@@ -9,6 +9,7 @@ from conftest import data_path
 import voxrender
 from voxrender import io
 from voxrender.errors import InputError
+from voxrender.space.grids import patient_affine
 
 # a grid stored as NIfTI usually is (RAS: x toward the right, y toward the front), so reading flips x and y
 SPACING, ORIGIN = (0.8, 0.9, 2.5), (30.0, -12.0, 7.5)
@@ -61,7 +62,7 @@ def test_a_mask_folder_is_the_label_map_it_was_split_from(tmp_path):
     assert np.array_equal(volume.values, labels[:, ::-1, ::-1])     # RAS -> LPS: x and y flipped
     assert volume.spacing == pytest.approx(whole.spacing) and volume.meta["origin"] == pytest.approx(
         whole.meta["origin"])
-    assert np.allclose(io.patient_affine(volume), io.patient_affine(whole))
+    assert np.allclose(patient_affine(volume), patient_affine(whole))
     assert volume.meta["format"] == "masks" and volume.meta["masks"] == 3
     assert volume.meta["label_table"] == {str(k): {"name": name, "colour": None} for k, name in enumerate(NAMES, 1)}
     assert volume.meta["overlaps"] == [] and volume.meta["empty_labels"] == []
@@ -161,9 +162,9 @@ def test_a_mask_on_a_coarser_shifted_flipped_grid_is_placed_by_position(tmp_path
                                          r"[\d.]+ mm, more than one voxel \(1 mm\)"):
         volume = io.read_volume(folder)
     first = io.read_volume(folder / "a_corner.nii.gz")
-    assert volume.shape == first.shape and np.allclose(io.patient_affine(volume), io.patient_affine(first))
+    assert volume.shape == first.shape and np.allclose(patient_affine(volume), patient_affine(first))
     z, y, x = np.indices(volume.shape)
-    affine = io.patient_affine(volume)
+    affine = patient_affine(volume)
     points = np.einsum("ij,jzyx->izyx", affine[:3, :3], np.stack([x, y, z]).astype(float))
     distance = np.linalg.norm(points + affine[:3, 3, None, None, None] - centre[:, None, None, None], axis=0)
     ball = distance <= radius
@@ -256,7 +257,7 @@ def vhf_tissues(tmp_path_factory):
     labels = np.zeros(hu.shape, np.uint8)
     for k, mask in enumerate(tissues.values(), start=1):
         labels[mask] = k
-    affine = io.patient_affine(ct) @ np.diag([3.0, 3.0, 1.0, 1.0])   # every third voxel across
+    affine = patient_affine(ct) @ np.diag([3.0, 3.0, 1.0, 1.0])   # every third voxel across
     ras = np.diag([-1.0, -1.0, 1.0, 1.0]) @ affine
     folder = tmp_path_factory.mktemp("segmentations")
     split(folder, labels, list(tissues), save=lambda path, values: save_nifti(path, values, ras))

@@ -245,7 +245,7 @@ def test_a_totalsegmentator_multilabel_file_names_its_labels_and_colours_them_by
     """Its names were not read: the legend showed 'label 5'."""
     import nibabel
 
-    from voxrender.colours import anatomy_colour, label_colours
+    from voxrender.pictures.colours import anatomy_colour, label_colours
 
     data = np.zeros((6, 6, 6), np.uint8)
     data[1:3, 1:3, 1:3], data[3:5, 3:5, 3:5] = 5, 6

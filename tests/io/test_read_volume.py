@@ -12,7 +12,7 @@ from formats import phantom, random_stack, stored, write_dicom, write_metaimage,
 from voxrender import io
 from voxrender.cli import main
 from voxrender.errors import InputError
-from voxrender.output import write_slices
+from voxrender.outputs.output import write_slices
 
 
 def test_natural_key_orders_numbers():
@@ -64,7 +64,7 @@ toy.READER = io.Reader(read_toy, suffixes=(".toy",), sniff=is_toy)
 
 
 def test_a_toy_format_added_by_the_recipe(tmp_path, monkeypatch):
-    from voxrender.pipeline import PrepOptions, load_segments
+    from voxrender.object.pipeline import PrepOptions, load_segments
 
     monkeypatch.setitem(io.READERS, "toy", toy.READER)          # its line in READERS
     values = np.zeros((3, 4, 5), int)

@@ -25,7 +25,8 @@ from skimage.draw import polygon2mask
 
 from voxrender import io
 from voxrender.errors import InputError
-from voxrender.io.rtstruct import check_reference, fill_even_odd, is_rtstruct, read_rtstruct
+from voxrender.io._dicomfile import is_rtstruct
+from voxrender.io.rtstruct import check_reference, fill_even_odd, read_rtstruct
 
 SPACING = (1.0, 1.0, 2.0)                   # x, y, z in mm
 SHAPE = (20, 40, 40)                        # z, y, x

@@ -10,6 +10,7 @@ from seg_files import SHAPE, blobs, complete_sources, write_ct, write_ct_and_seg
 from voxrender import io
 from voxrender.errors import InputError
 from voxrender.io import seg as seg_reader
+from voxrender.space.grids import patient_affine
 
 SPACING = (0.7, 0.8, 2.5)                               # spacing (x, y, z) in mm
 NAMES = ["liver", "spleen", "kidney"]
@@ -33,7 +34,7 @@ def write_pair(folder, labels, kind="BINARY", direction=None, colours=None, **op
 def on_grid_of(volume, image):
     """``volume``'s values placed on ``image``'s grid (both read, so reoriented): they must lie on its voxels."""
     assert np.allclose(volume.spacing, image.spacing) and np.allclose(volume.direction, image.direction, atol=1e-6)
-    corner = np.linalg.inv(io.patient_affine(image)) @ [*volume.meta["origin"], 1.0]
+    corner = np.linalg.inv(patient_affine(image)) @ [*volume.meta["origin"], 1.0]
     assert np.allclose(corner[:3], np.rint(corner[:3]), atol=1e-4), corner
     x, y, z = np.rint(corner[:3]).astype(int)
     assert min(x, y, z) >= 0

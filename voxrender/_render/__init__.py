@@ -1,7 +1,7 @@
 """Renderers: one module per algorithm, and the registry ``METHODS`` of :class:`Method` records.
 
 Every renderer is a function ``f(segments, view, progress=None, clip=None, **options)`` that takes
-:class:`~voxrender.segments.Segments` and a :class:`~voxrender.view.View` with its scale set, and
+:class:`~voxrender.object.segments.Segments` and a :class:`~voxrender.space.view.View` with its scale set, and
 returns ``(depth, stats)``: the float32 depth image of the view contract (``+inf`` where the ray meets
 nothing) and a dict of the algorithm's own counts.  Its record says what else it needs.  Adding a
 renderer is one module and one record (see ``docs/design.md``).
@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..view import View
+from ..space.view import View
 from .btf import render_btf
 from .clip import Clip
 from .ftb import render_ftb
@@ -152,7 +152,7 @@ def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, 
 
     Examples
     --------
-    >>> from voxrender.segments import encode
+    >>> from voxrender.object.segments import encode
     >>> image = render(encode(np.ones((3, 3, 3), bool)), View(size=(8, 8), scale=1.0))
     >>> int(image.coverage.sum()), image.stats["pixels_lit"]
     (16, 16)

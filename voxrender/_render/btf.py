@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..segments import expand_runs
+from ..object.segments import expand_runs
 from .geometry import paint_boxes
 
 
@@ -69,8 +69,8 @@ def render_btf(segments, view, progress=None, clip=None):
 
     Examples
     --------
-    >>> from voxrender.segments import encode
-    >>> from voxrender.view import View
+    >>> from voxrender.object.segments import encode
+    >>> from voxrender.space.view import View
     >>> depth, stats = render_btf(encode(np.ones((2, 2, 2), bool)), View(size=(4, 4), scale=1.0))
     >>> depth[1:3, 1:3].tolist(), stats["voxels_projected"]
     ([[-1.0, -1.0], [-1.0, -1.0]], 8)

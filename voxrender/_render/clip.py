@@ -23,7 +23,7 @@ class Clip:
     Examples
     --------
     >>> clip = Clip(x=(2, None))
-    >>> from voxrender.view import View
+    >>> from voxrender.space.view import View
     >>> keep, starts, ends = clip.apply_runs(np.array([0, 0]), np.array([0, 0]), np.array([0, 4]),
     ...                                      np.array([1, 6]), View(scale=1.0), (1, 1, 8))
     >>> keep.tolist(), starts.tolist(), ends.tolist()

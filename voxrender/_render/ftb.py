@@ -32,8 +32,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..segments import ranges
-from ..view import View
+from ..object.segments import ranges
+from ..space.view import View
 from .btf import back_to_front
 from .geometry import box_rows, ray_box_entry, row_spans
 
@@ -406,8 +406,8 @@ def render_ftb(segments, view, progress=None, clip=None, items=False):
 
     Examples
     --------
-    >>> from voxrender.segments import encode
-    >>> from voxrender.view import View
+    >>> from voxrender.object.segments import encode
+    >>> from voxrender.space.view import View
     >>> depth, stats = render_ftb(encode(np.ones((2, 2, 2), bool)), View(size=(4, 4), scale=1.0))
     >>> depth[1:3, 1:3].tolist(), stats["pixels_lit"], stats["cases"]["4"]
     ([[-1.0, -1.0], [-1.0, -1.0]], 4, 2)

@@ -2,7 +2,7 @@
 
 A run of voxels ``[s, e]`` in row ``(y, z)`` is the box ``[s - 1/2, e + 1/2] x [y - 1/2, y + 1/2] x
 [z - 1/2, z + 1/2]``; a voxel is the box of a run of one, and an octant's face a box with one half-extent 0.
-The mappings between object, image and pixels are the :class:`~voxrender.view.View`'s; this module adds
+The mappings between object, image and pixels are the :class:`~voxrender.space.view.View`'s; this module adds
 what boxes need: the ray-box entry, the projection of boxes onto pixels (:func:`paint_boxes`) and, for the
 dynamic screen, the scanlines and spans a box covers.  Every renderer paints with these functions, so that
 all of them agree with each other and with the contract.
@@ -105,7 +105,7 @@ def paint_boxes(view, shape, x, y, z, half=(0.5, 0.5, 0.5), count_scanlines=Fals
 
     Examples
     --------
-    >>> from voxrender.view import View
+    >>> from voxrender.space.view import View
     >>> found = paint_boxes(View(size=(4, 4), scale=1.0), (1, 1, 1), np.array([0]), np.array([0]), np.array([0]),
     ...                     count_scanlines=True)
     >>> found.pixels.tolist(), found.depths.round(6).tolist(), found.scanlines
@@ -152,7 +152,7 @@ def box_rows(yc, half_y, half_z, view):
     Needs ``view.matrix[1, 0] == 0`` (alpha and beta only, the paper's Theorem 1), so that ``Y'``
     does not change along object x.  Rows outside the picture are not clipped.
 
-    >>> from voxrender.view import View
+    >>> from voxrender.space.view import View
     >>> box_rows(np.array([0.0]), 0.5, 0.5, View(size=(4, 4), scale=1.0))
     (array([1]), array([2]))
     """
@@ -171,7 +171,7 @@ def row_spans(dy, xc, half_x, half_y, half_z, view):
     that is an interval, computed here in closed form.  Columns outside the picture are
     clipped; an empty span has ``first > last``.
 
-    >>> from voxrender.view import View
+    >>> from voxrender.space.view import View
     >>> row_spans(np.array([0.0]), np.array([0.0]), np.array([1.5]), 0.5, 0.5, View(size=(8, 8), scale=1.0))
     (array([2]), array([5]))
     """

@@ -21,9 +21,9 @@ import time
 
 import numpy as np
 
-from .. import octree
-from ..segments import Segments
-from ..view import vpn_from_angles
+from ..object import octree
+from ..object.segments import Segments
+from ..space.view import vpn_from_angles
 from .geometry import paint_boxes
 
 
@@ -113,8 +113,8 @@ def render_octree_btf(segments, view, progress=None, clip=None, tree=None):
 
     Examples
     --------
-    >>> from voxrender import segments
-    >>> from voxrender.view import View
+    >>> from voxrender.object import segments
+    >>> from voxrender.space.view import View
     >>> depth, stats = render_octree_btf(segments.encode(np.ones((4, 4, 4), bool)), View(30, 20, 0, (16, 16), 2.0))
     >>> stats["black_visited"], stats["black_faces"], bool(np.isfinite(depth).any())
     (1, 3, True)

@@ -33,8 +33,8 @@ import time
 
 import numpy as np
 
-from .. import octree
-from ..view import vpn_from_angles
+from ..object import octree
+from ..space.view import vpn_from_angles
 from .octree_btf import front_to_back_children, paint_faces, region_octree, visible_axes
 
 
@@ -133,8 +133,8 @@ def render_octree_ftb(segments, view, progress=None, clip=None, tree=None):
 
     Examples
     --------
-    >>> from voxrender import segments
-    >>> from voxrender.view import View
+    >>> from voxrender.object import segments
+    >>> from voxrender.space.view import View
     >>> depth, stats = render_octree_ftb(segments.encode(np.ones((4, 4, 4), bool)), View(30, 20, 0, (16, 16), 2.0))
     >>> stats["black_visited"], stats["black_faces"], bool(np.isfinite(depth).any())
     (1, 3, True)

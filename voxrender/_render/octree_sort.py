@@ -25,9 +25,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import octree
-from ..segments import ranges
-from ..view import vpn_from_angles
+from ..object import octree
+from ..object.segments import ranges
+from ..space.view import vpn_from_angles
 from .geometry import paint_boxes
 from .octree_btf import region_octree
 
@@ -132,8 +132,8 @@ def render_octree_sort(segments, view, progress=None, clip=None, order="ftb", tr
 
     Examples
     --------
-    >>> from voxrender import segments
-    >>> from voxrender.view import View
+    >>> from voxrender.object import segments
+    >>> from voxrender.space.view import View
     >>> depth, stats = render_octree_sort(segments.encode(np.ones((2, 2, 2), bool)), View(size=(4, 4), scale=1.0))
     >>> depth[1:3, 1:3].tolist(), stats["voxels"], stats["pixel_writes"]
     ([[-1.0, -1.0], [-1.0, -1.0]], 8, 4)
@@ -180,8 +180,8 @@ def render_zbuffer(segments, view, progress=None, clip=None, count_writes=True, 
 
     Examples
     --------
-    >>> from voxrender import segments
-    >>> from voxrender.view import View
+    >>> from voxrender.object import segments
+    >>> from voxrender.space.view import View
     >>> depth, stats = render_zbuffer(segments.encode(np.ones((2, 2, 2), bool)), View(size=(4, 4), scale=1.0))
     >>> depth[1:3, 1:3].tolist(), stats["fragments"]
     ([[-1.0, -1.0], [-1.0, -1.0]], 8)

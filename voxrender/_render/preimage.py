@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..view import View
+from ..space.view import View
 from .geometry import ray_box_entry
 
 
@@ -97,7 +97,7 @@ def render_preimage(renderer, segments, view, supersample=2, progress=None, clip
 
     Examples
     --------
-    >>> from voxrender.segments import encode
+    >>> from voxrender.object.segments import encode
     >>> from voxrender._render.ftb import render_ftb
     >>> depth, stats = render_preimage(render_ftb, encode(np.ones((2, 2, 2), bool)),
     ...                                View(gamma=45, size=(6, 6), scale=1.0))

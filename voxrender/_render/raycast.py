@@ -1,7 +1,7 @@
 """Discrete ray casting with connectivity control (Cohen-Or and Kaufman, "Alternating between connectivities").
 
 One discrete ray per pixel of the view contract, all rays stepped together as arrays (the steps of
-:class:`voxrender.lines.Stepper`, its oracle, operation for operation).  A 6-ray visits every voxel its
+:class:`voxrender.space.lines.Stepper`, its oracle, operation for operation).  A 6-ray visits every voxel its
 continuous ray pierces, so its first object voxel is the contract's; a 26-ray takes about half the steps but may
 skip voxels, slipping through thin walls (a leak) or missing the object at its silhouette.  The adaptive ray
 steps as a 26-ray and switches to 6-connectivity (Eqs. 9-13) inside the proximity band, the object dilated by
@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from ..lines import Stepper
+from ..space.lines import Stepper
 from .geometry import ray_box_entry
 
 CONNECTIVITIES = ("6", "26", "adaptive")
@@ -30,7 +30,7 @@ class Bitmap:
 
     Examples
     --------
-    >>> from voxrender.segments import encode
+    >>> from voxrender.object.segments import encode
     >>> mask = np.zeros((2, 3, 70), bool); mask[1, 2, 3:66] = True
     >>> bits = Bitmap.of_segments(encode(mask))
     >>> bits[np.array([1, 1, 1, 0]), np.array([2, 2, 2, 2]), np.array([2, 3, 65, 65])].tolist()
@@ -63,7 +63,7 @@ class Bitmap:
         """The words of the runs, written run by run: the bits from its start in its first word, up to its end in
         its last, and the whole words between (which no other run shares).
         """
-        from ..segments import ranges
+        from ..object.segments import ranges
 
         nz, ny, _ = segments.shape
         words = np.zeros(nz * ny * per_row, np.uint64)
@@ -367,7 +367,7 @@ class _Bits:
 
 
 class _Rays:
-    """The rays still going, in flat arrays: the state of :class:`voxrender.lines.Stepper` (its frame offsets
+    """The rays still going, in flat arrays: the state of :class:`voxrender.space.lines.Stepper` (its frame offsets
     ``q0, q1, q2`` and midpoint errors), with the index of each ray's voxel (:class:`_Bits`) moved along with it
     and the offsets at which it leaves the volume along each frame axis.  The steps are the stepper's, operation
     for operation (the same errors to the bit); the stepper stays their oracle (tests/test_render_raycast.py).
@@ -625,8 +625,8 @@ def render_raycast(segments, view, progress=None, clip=None, connectivity="adapt
 
     Examples
     --------
-    >>> from voxrender.segments import encode
-    >>> from voxrender.view import View
+    >>> from voxrender.object.segments import encode
+    >>> from voxrender.space.view import View
     >>> depth, stats = render_raycast(encode(np.ones((2, 2, 2), bool)), View(size=(4, 4), scale=1.0), connectivity="6")
     >>> depth[1:3, 1:3].tolist(), stats["rays_hit"]
     ([[-1.0, -1.0], [-1.0, -1.0]], 4)

@@ -27,7 +27,7 @@ An RTSTRUCT holds contours, not a grid: it is read as the labels of its image on
 of folders and the filling of stacks.  A folder of NIfTI or NRRD files (a segmentation's one file per organ) is
 read as one label map (``masks``); the ``nifti`` and ``nrrd`` formats, named for a folder, refuse it.
 
-Every reader also returns, when its header says it, the volume's *direction* (see :mod:`voxrender.orient`);
+Every reader also returns, when its header says it, the volume's *direction* (see :mod:`voxrender.space.orient`);
 :func:`read_volume` then brings the volume to the canonical patient frame (LPS) by flips and permutations.
 Readers stream: the volume array is allocated once and filled slice by slice.
 
@@ -45,8 +45,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import orient
 from ..errors import InputError
+from ..space import orient
+from ..space.grids import voxel_affine
 from . import dicom, images, masks, metaimage, nifti, npy, nrrd, raw, seg, tiff, zarr
 from ._shared import (
     RawLayout,
@@ -61,7 +62,7 @@ from ._shared import (
 )
 
 __all__ = ["Volume", "RawLayout", "Reader", "READERS", "FORMATS", "read_volume", "open_stack", "detect_format",
-           "natural_key", "check_spacing", "patient_affine"]
+           "natural_key", "check_spacing"]
 
 # The formats by name, in the order ``format="auto"`` tries them: a Zarr store before DICOM (its folders are told by a
 # metadata file, where the DICOM sniff would open every chunk), a folder of DICOM files before one of images (an
@@ -252,29 +253,10 @@ def _placed(volume, path, format, orientation, reorient):
         volume.meta.setdefault("orientation_from", "unknown: the input does not say (stored order kept)")
         return False
     volume.meta["orientation"] = orient.code_of(volume.direction)
-    volume.meta["affine"] = _affine(volume.direction, volume.spacing, volume.meta.get("origin")).tolist()
+    volume.meta["affine"] = voxel_affine(volume.direction, volume.spacing, volume.meta.get("origin")).tolist()
     if reorient and "origin" in volume.meta:          # the position of the voxel that becomes values[0, 0, 0]
         corner = orient.canonical_corner(volume.shape, volume.direction)
         volume.meta["origin"] = (np.asarray(volume.meta["affine"])[:3] @ [*corner, 1.0]).tolist()
     return reorient
 
 
-def patient_affine(volume):
-    """The 4 x 4 matrix from a voxel index ``(x, y, z, 1)`` of ``volume.values`` (as it is now: reoriented, when
-    :func:`read_volume` did) to its patient position (LPS, mm): from its direction, spacing and origin, each the
-    identity, 1 mm or zero where the input does not say.  Pairs a label map with its image.
-
-    >>> volume = Volume(np.zeros((2, 3, 4)), (0.5, 0.5, 2.0), {"origin": [10.0, 0.0, 0.0]})
-    >>> patient_affine(volume)[:3].tolist()
-    [[0.5, 0.0, 0.0, 10.0], [0.0, 0.5, 0.0, 0.0], [0.0, 0.0, 2.0, 0.0]]
-    """
-    return _affine(np.eye(3) if volume.direction is None else volume.direction, volume.spacing,
-                   volume.meta.get("origin"))
-
-
-def _affine(direction, spacing, origin=None):
-    """The 4 x 4 voxel (x, y, z) -> patient (LPS, mm) matrix of the stored volume (origin 0 when unknown)."""
-    affine = np.eye(4)
-    affine[:3, :3] = np.asarray(direction, dtype=float) * np.asarray(spacing, dtype=float)[None, :]
-    affine[:3, 3] = origin if origin is not None else 0.0
-    return np.round(affine, 6)

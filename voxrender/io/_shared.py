@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._shared.memory import free_memory
+from .._shared.text import first_line, in_words
 from ..errors import InputError
 
 # Files that sit beside slices or volume files without being either.
@@ -28,9 +30,9 @@ class Volume:
     """A stack of slices: ``values[z, y, x]`` with voxel ``spacing`` (x, y, z) in mm.
 
     ``direction`` (3 x 3, or ``None`` when the input does not say) holds in column ``k`` the patient (LPS)
-    direction along which voxel axis ``k`` (x, y, z) grows; see :mod:`voxrender.orient`.  ``meta["origin"]``, when
+    direction along which voxel axis ``k`` (x, y, z) grows; see :mod:`voxrender.space.orient`.  ``meta["origin"]``, when
     the input says it, is the patient position (LPS, mm) of voxel ``values[0, 0, 0]``; with the direction and the
-    spacing it makes :func:`voxrender.io.patient_affine`.
+    spacing it makes :func:`voxrender.space.grids.patient_affine`.
 
     Examples
     --------
@@ -175,12 +177,6 @@ def folder_of_volumes(folder, kind, suffixes):
     masks = ", or the folder as one label map of masks (format masks)" if kind in ("NIfTI", "NRRD") else ""
     return InputError(f"{folder} holds {len(files)} {kind} volume file{'s' * (len(files) > 1)} ({some_names(files)}), "
                       f"not slices; give one of them{masks}")
-
-
-def first_line(exc):
-    """The first line of an exception's message (a library's messages can run to many lines), for ours."""
-    text = str(exc).strip().splitlines()
-    return (text[0] if text else type(exc).__name__)[:200]
 
 
 class _Kept(logging.Handler):
@@ -334,44 +330,6 @@ def promised_bytes(shape, dtype):
     54000000000000
     """
     return math.prod(int(n) for n in shape) * np.dtype(dtype).itemsize
-
-
-def in_words(nbytes):
-    """A size for a message.
-
-    >>> in_words(54000000000000), in_words(64), in_words(1500000)
-    ('54 TB', '64 bytes', '1.5 MB')
-    """
-    if nbytes < 1000:
-        return f"{nbytes} bytes"
-    power = min(int(math.log10(nbytes) // 3), 6)
-    return f"{nbytes / 1000 ** power:.3g} {'kMGTPE'[power - 1]}B"
-
-
-def free_memory():
-    """The bytes this process can still allocate: the memory the system has available, within the process's
-    address-space limit (``RLIMIT_AS``) when it has one.
-    """
-    import resource
-
-    free = None
-    try:
-        with open("/proc/meminfo") as f:
-            free = next(int(line.split()[1]) * 1024 for line in f if line.startswith("MemAvailable:"))
-    except (OSError, StopIteration, ValueError, IndexError):
-        try:
-            free = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-        except (ValueError, OSError, AttributeError):
-            free = None
-    limit = resource.getrlimit(resource.RLIMIT_AS)[0]
-    if limit not in (resource.RLIM_INFINITY, -1):
-        try:
-            with open("/proc/self/statm") as f:
-                used = int(f.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
-        except (OSError, ValueError, IndexError):
-            used = 0
-        free = min(free if free is not None else limit, max(limit - used, 0))
-    return free if free is not None else 1 << 62
 
 
 def check_fits(shape, dtype, source, held=None):

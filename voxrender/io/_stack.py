@@ -4,7 +4,7 @@ A :class:`Stack` is a volume not yet read: its shape, type, spacing, direction a
 give them, and ``read_slices(z0, z1)``, which reads the stored slices ``z0 .. z1 - 1`` only.  A reader that can
 stream gives one through its record's ``open`` function (``open_FORMAT(path, **options) -> Stack``);
 :func:`voxrender.io.open_stack` finds the reader and brings the stack to the canonical frame (:class:`Canonical`),
-still unread.  The streaming encoder (:mod:`voxrender.stream`) then reads it slab by slab in canonical z order.
+still unread.  The streaming encoder (:mod:`voxrender.object.stream`) then reads it slab by slab in canonical z order.
 
 How a canonical slab is read depends on the stored order:
 
@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import orient
+from ..space import orient
 
 
 @dataclass
@@ -142,7 +142,7 @@ class Canonical:
 
 
 def canonical(stack, reorient=True):
-    """``stack`` in the canonical frame (see :func:`voxrender.orient.to_canonical`), unread: the transpose and
+    """``stack`` in the canonical frame (see :func:`voxrender.space.orient.to_canonical`), unread: the transpose and
     flips that ``to_canonical`` would apply to the whole array, applied to each slab as it is read.
     """
     meta = dict(stack.meta)
@@ -158,7 +158,7 @@ def canonical(stack, reorient=True):
 
 
 def _transform(spacing, direction, source):
-    """The transpose order and flipped axes :func:`voxrender.orient.to_canonical` applies, read off what it does
+    """The transpose order and flipped axes :func:`voxrender.space.orient.to_canonical` applies, read off what it does
     to an array of index numbers the size of two voxels a side (cheap), with its spacing, direction and note.
     """
     small = np.arange(8).reshape(2, 2, 2)

@@ -10,40 +10,32 @@ from __future__ import annotations
 import contextlib
 import functools
 import io
-import os
 import struct
 import sys
 import warnings
-import zlib
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from .._shared.text import first_line
 from ..errors import InputError
-from ._shared import (
-    Reader,
-    Volume,
-    check_fits,
-    check_spacing,
-    fill_stack,
-    first_line,
-    identity_progress,
-    natural_key,
-    to_grey,
+from ._dicomfile import (
+    NOT_IMAGES,
+    SEGMENTATIONS,
+    SUFFIXES,
+    BoundedFile,
+    choose_series,
+    damaged_file_errors,
+    dicom_files,
+    is_dicom,
+    is_rtstruct,
 )
+from ._shared import Reader, Volume, check_fits, check_spacing, fill_stack, identity_progress, to_grey
 from ._stack import Stack
 from .images import place_slice
 
-SUFFIXES = (".dcm", ".dicom", ".ima")
-# Objects a study folder holds beside its slices that are not slices: segmentations (read as the labels of their
-# image, by voxrender.io.seg and voxrender.io.rtstruct), structured reports, presentation states, plans.
-SEG_CLASSES = {"1.2.840.10008.5.1.4.1.1.66.4": "SEG",                  # Segmentation Storage
-               "1.2.840.10008.5.1.4.1.1.66.7": "SEG (label map)"}     # Label Map Segmentation Storage
-RTSTRUCT_CLASS = "1.2.840.10008.5.1.4.1.1.481.3"                       # RT Structure Set Storage
-SEGMENTATIONS = {**SEG_CLASSES, RTSTRUCT_CLASS: "RTSTRUCT"}
-NOT_IMAGES = ("SR", "PR", "KO", "RTPLAN", "RTRECORD", "REG", "DOC")
 # The header values that group, sort and place the slices.
 HEADER_KEYWORDS = ("Rows", "Columns", "Modality", "SOPClassUID", "SeriesInstanceUID", "SeriesDescription",
                    "FrameOfReferenceUID", "NumberOfFrames", "ImagePositionPatient", "ImageOrientationPatient",
@@ -55,57 +47,6 @@ PLAIN_SYNTAXES = {"1.2.840.10008.1.2": True,            # Implicit VR Little End
 # A header is read in one call of this many bytes: most end (at their pixel data) within it, long private ones
 # (Siemens CSA ...) too; the rest of a slice file is read straight into the volume.
 HEADER_BYTES = 1 << 16
-
-
-def damaged_file_errors():
-    """What pydicom raises for a damaged file or one it cannot decode, found in its test files and cut or garbled ones.
-
-    Its own errors; ``struct.error`` and ``EOFError`` for cut-off elements; ``AttributeError`` (and ``KeyError``) for
-    a missing required element; ``ValueError`` and ``TypeError`` for values that are not what their VR says;
-    ``NotImplementedError`` for an unknown VR or transfer syntax; ``RuntimeError`` when no installed decoder reads
-    the pixel data; ``zlib.error`` for a deflated data set that is cut or garbled.
-    """
-    from pydicom.errors import BytesLengthException, InvalidDicomError
-
-    return (InvalidDicomError, BytesLengthException, OSError, EOFError, struct.error, AttributeError, KeyError,
-            ValueError, TypeError, NotImplementedError, RuntimeError, zlib.error)
-
-
-def _dicom_files(folder):
-    """DICOM files in ``folder``; when it holds none itself, those anywhere below it (exports nest them)."""
-    files = [p for p in folder.iterdir() if p.is_file() and not p.name.startswith(".") and _is_dicom(p)]
-    if not files:
-        files = [p for p in folder.rglob("*") if p.is_file() and not any(part.startswith(".") for part in
-                                                                            p.relative_to(folder).parts)
-                 and _is_dicom(p)]
-    return sorted((p for p in files if p.name.upper() != "DICOMDIR"), key=lambda p: natural_key(str(p)))
-
-
-class _BoundedFile(io.BufferedReader):
-    """A file whose reads ask for no more than it holds: pydicom reads an element by its length, and a damaged
-    length (or one read in the wrong byte order) would otherwise allocate that much before finding the file short.
-    """
-
-    def __init__(self, path):
-        super().__init__(io.FileIO(path, "rb"))
-        self.size = os.fstat(self.fileno()).st_size
-
-    def read(self, size=-1):
-        if size is not None and size > self.size:      # the file's size bounds it: no tell() on every small read
-            size = self.size
-        return super().read(size)
-
-
-def _is_dicom(path):
-    """A DICOM file, by its suffix or its magic bytes."""
-    if path.suffix.lower() in SUFFIXES:
-        return True
-    try:
-        with open(path, "rb") as f:
-            f.seek(128)
-            return f.read(4) == b"DICM"
-    except OSError:
-        return False
 
 
 def read_dicom(folder, progress, series=None):
@@ -164,13 +105,11 @@ def _series_files(folder, progress, series):
     their pixels plainly hold them, ``{path: _Plain}`` (see :func:`_plain_pixels`).
     """
     if folder.is_file():
-        from .rtstruct import is_rtstruct
-
         if is_rtstruct(folder):
             raise InputError(f"{folder} is an RTSTRUCT: it holds contours, not a volume; give its CT series as the "
                              "image and the RTSTRUCT as its labels", parameter="labels_from")
         raise InputError(f"{folder} is one DICOM file; give the folder that holds the whole series")
-    files = _dicom_files(folder)
+    files = dicom_files(folder)
     if not files:
         raise InputError(f"{folder} holds no DICOM files")
     damaged = damaged_file_errors()
@@ -201,14 +140,7 @@ def _series_files(folder, progress, series):
     groups = {}
     for f, ds in headers:
         groups.setdefault(_text(ds, 0x0020000E, "(no SeriesInstanceUID)", texts), []).append((f, ds))
-    if series is not None:
-        if series not in groups:
-            raise InputError(f"no series {series} in {folder}; it holds {_list_series(groups)}", parameter="series")
-        return groups[series], aside, plain
-    if len(groups) > 1:
-        raise InputError(f"{folder} holds {len(groups)} DICOM series; choose one by its UID: "
-                         f"{_list_series(groups)}", parameter="series")
-    return next(iter(groups.values())), aside, plain
+    return choose_series(groups, folder, series), aside, plain
 
 
 @functools.cache
@@ -274,11 +206,11 @@ def _read_header(path):
     there: ``(ds, position, element)``.
 
     The file's first :data:`HEADER_BYTES` are read in one call and parsed in memory: pydicom reads a stream a few
-    bytes at a time, each read a call of :class:`_BoundedFile`.  A header that does not end within them at a pixel
+    bytes at a time, each read a call of :class:`BoundedFile`.  A header that does not end within them at a pixel
     data element (a long one; a damaged, deflated or odd file) is parsed again from the file, as every header once
     was, for its data set or its error.
     """
-    with _BoundedFile(path) as stream:
+    with BoundedFile(path) as stream:
         start = stream.read(HEADER_BYTES)
         try:
             with warnings.catch_warnings(record=True) as caught:
@@ -564,7 +496,7 @@ def _dicom_pixels(path):
     damaged = damaged_file_errors()
     ds = None
     try:
-        with _BoundedFile(path) as stream:
+        with BoundedFile(path) as stream:
             ds = pydicom.dcmread(stream, force=True)
         _check_pixels_fit(ds, path)
         data = ds.pixel_array
@@ -708,7 +640,7 @@ def _open_multiframe(path):
 
     damaged = damaged_file_errors()
     try:
-        with _BoundedFile(path) as stream:
+        with BoundedFile(path) as stream:
             ds = pydicom.dcmread(stream, stop_before_pixels=True, force=True)
     except damaged as exc:
         raise InputError(f"cannot read DICOM file {path}: {first_line(exc)}") from None
@@ -744,7 +676,7 @@ def _frames_read(path, ds, placed, frames):
     damaged = damaged_file_errors()
     _check_pixels_fit(ds, path, frames=1)
     try:
-        with _BoundedFile(path) as stream:
+        with BoundedFile(path) as stream:
             for k, data in zip(frames, iter_pixels(stream, indices=frames), strict=True):
                 yield k, placed.values(data, k)
     except InputError:
@@ -840,19 +772,10 @@ def _beside(aside):
     return {"segmentations": found} if found else {}
 
 
-def _list_series(groups):
-    """The series of ``groups`` for a message, on one line: a control character of a damaged header (a newline in a
-    UID ...) is shown escaped.
-    """
-    listed = "; ".join(f"{uid} ({len(items)} slices, {getattr(items[0][1], 'SeriesDescription', '')!s})"
-                       for uid, items in groups.items())
-    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in listed)
-
-
 def _sort_dicom(items):
     """Order slices along the slice normal; return (items, slice spacing, how they were sorted, direction).
 
-    The direction (see :mod:`voxrender.orient`) is known when the slices have ImageOrientationPatient:
+    The direction (see :mod:`voxrender.space.orient`) is known when the slices have ImageOrientationPatient:
     x along its row direction, y along its column direction, z along the normal, the way the slices are sorted.
     """
     first = items[0][1]
@@ -895,45 +818,9 @@ def _sort_dicom(items):
     return items, spacing, how, direction
 
 
-
-def fault(exc):
-    """What a pydicom or highdicom error says is wrong, for a message (the SEG and RTSTRUCT readers'): the element a
-    data set lacks (a ``KeyError`` of its tag or an ``AttributeError`` of its keyword), else the error's first line.
-
-    >>> from pydicom.tag import Tag
-    >>> fault(KeyError(Tag(0x0020, 0x9113))), fault(AttributeError("'Dataset' object has no attribute 'Rows'"))
-    ('it lacks PlanePositionSequence (0020,9113)', 'it lacks Rows')
-    """
-    from pydicom.datadict import keyword_for_tag
-    from pydicom.tag import BaseTag
-
-    if isinstance(exc, KeyError) and exc.args and isinstance(exc.args[0], BaseTag):
-        return f"it lacks {keyword_for_tag(exc.args[0]) or 'an element'} {exc.args[0]}"
-    text = first_line(exc)
-    if isinstance(exc, AttributeError) and "has no attribute '" in text:
-        return "it lacks " + text.split("has no attribute '")[1].rstrip("'")
-    return text.rstrip(".")
-
-
-def segmentation_files(folder):
-    """The segmentation files (SEG, RTSTRUCT) among a folder's DICOM files, by their SOPClassUID alone."""
-    import pydicom
-
-    found = []
-    for f in _dicom_files(folder):
-        try:
-            sop_class = str(pydicom.dcmread(f, stop_before_pixels=True, specific_tags=["SOPClassUID"], force=True)
-                            .get("SOPClassUID", ""))
-        except damaged_file_errors():
-            continue                                   # not one: the slices' reader names a damaged file
-        if sop_class in SEGMENTATIONS:
-            found.append(f)
-    return found
-
-
 def holds_dicom(path):
     """A folder holding DICOM files (or with some below it), or one DICOM file."""
-    return _is_dicom(path) if path.is_file() else bool(_dicom_files(path))
+    return is_dicom(path) if path.is_file() else bool(dicom_files(path))
 
 
 READER = Reader(read_dicom, SUFFIXES, options=("series",), sniff=holds_dicom, open=open_dicom)

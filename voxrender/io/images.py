@@ -7,8 +7,9 @@ import zlib
 
 import numpy as np
 
+from .._shared.text import first_line
 from ..errors import InputError
-from ._shared import Reader, Volume, files_in, fill_stack, first_line, listed, quiet_log, stack_type, to_grey
+from ._shared import Reader, Volume, files_in, fill_stack, listed, quiet_log, stack_type, to_grey
 from ._stack import Stack
 
 SUFFIXES = (".png", ".tif", ".tiff", ".bmp", ".jpg", ".jpeg")

@@ -8,7 +8,7 @@ orientation are checked as for any volume) and becomes one label:
   ``.nhdr`` (``liver.nii.gz`` is ``liver``); label k (from 1) is the k-th name in natural order
   (:func:`~voxrender.io.natural_key`: ``rib_2`` before ``rib_10``, case aside).
 - **Grid.** The label map lies on the first mask's grid; a mask on another grid is placed on it by patient position
-  (:func:`voxrender.grids.pair`, nearest neighbour).
+  (:func:`voxrender.space.grids.pair`, nearest neighbour).
 - **Overlaps.** A voxel in two masks goes to the one numbered first.  Each pair that overlaps is reported in
   ``meta["overlaps"]``: ``{"labels": [a, b], "names": [...], "voxels": n}``, the voxels of mask b that label a had
   already taken.
@@ -161,7 +161,7 @@ def _read_mask(file):
 
 def _on_grid(volume, found, first, file, first_file):
     """Where a mask is on the first mask's grid: as found, on the same grid; else placed by patient position."""
-    from .. import grids
+    from ..space import grids
 
     if found is None:
         return None

@@ -11,14 +11,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import orient
+from .._shared.text import first_line
 from ..errors import InputError
+from ..space import orient
 from ._shared import (
     Reader,
     Volume,
     check_spacing,
     files_in,
-    first_line,
     folder_of_volumes,
     listed,
     open_voxels,

@@ -11,8 +11,9 @@ import zlib
 
 import numpy as np
 
-from .. import orient
+from .._shared.text import first_line
 from ..errors import InputError
+from ..space import orient
 from ._shared import (
     Reader,
     Volume,
@@ -20,7 +21,6 @@ from ._shared import (
     check_frame,
     check_holds,
     check_spacing,
-    first_line,
     folder_of_volumes,
     inflated_size,
     open_voxels,

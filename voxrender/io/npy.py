@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._shared.text import first_line
 from ..errors import InputError
-from ._shared import Reader, Volume, check_holds, first_line, promised_bytes, slices_at, stack_type
+from ._shared import Reader, Volume, check_holds, promised_bytes, slices_at, stack_type
 from ._stack import Stack
 
 

@@ -16,15 +16,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import orient
+from .._shared.text import first_line
 from ..errors import InputError
+from ..space import orient
 from ._shared import (
     Reader,
     Volume,
     check_fits,
     check_frame,
     check_spacing,
-    first_line,
     folder_of_volumes,
     open_voxels,
     promised_bytes,

@@ -9,9 +9,9 @@ An RTSTRUCT has no grid of its own, so it is read onto its image's: :func:`read_
   ``meta["roi_numbers"]`` maps each label back to its ROINumber.  Names come from ROIName, colours from
   ROIDisplayColor (``None`` when the file gives none).
 - **Slices.** Each contour point is taken to voxel coordinates by the inverse of
-  :func:`~voxrender.io.patient_affine`.  A contour belongs to the image slice whose centre its plane lies within
-  half a slice of, along the axis the image's slices were stacked on (z for an axial CT, x for a sagittal one once
-  reoriented).  A contour whose points spread beyond half a slice from its plane is not in a slice plane; one off
+  :func:`~voxrender.space.grids.patient_affine`.  A contour belongs to the image slice whose centre its plane lies
+  within half a slice of, along the axis the image's slices were stacked on (z for an axial CT, x for a sagittal one
+  once reoriented).  A contour whose points spread beyond half a slice from its plane is not in a slice plane; one off
   the image, or half-way between two slices, or on a finer plane beside another contour of its ROI on the same
   slice (contours drawn on a finer CT), lies between slices.  Those are counted in one warning, not drawn.
 - **Holes.** All closed contours of one ROI on one slice are combined by the even-odd rule, as DICOM's
@@ -37,8 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ._dicomfile import RTSTRUCT_CLASS, BoundedFile, damaged_file_errors, fault
 from ._shared import Volume, check_fits, identity_progress
-from .dicom import RTSTRUCT_CLASS, _BoundedFile, _is_dicom, damaged_file_errors, fault
 
 OVERLAP_RULE = "a voxel in two ROIs goes to the lower label (the lower ROINumber)"
 CLOSED_TYPES = ("CLOSED_PLANAR", "CLOSEDPLANAR_XOR")
@@ -56,26 +56,6 @@ SKIPPED = {"open": "are points or open lines (POINT, OPEN_PLANAR, OPEN_NONPLANAR
            "not_planar": "do not lie in one of the image's slice planes",
            "between": "lie between the image's slices",
            "outside": "lie outside the image"}
-
-
-def is_rtstruct(path):
-    """Whether ``path`` is a DICOM RTSTRUCT file, from its SOPClassUID or Modality (the header alone is read).
-
-    >>> import tempfile, pathlib
-    >>> is_rtstruct(pathlib.Path(tempfile.mkdtemp()))
-    False
-    """
-    path = Path(path)
-    if not path.is_file() or not _is_dicom(path):      # asked of every label source: no pydicom for a NIfTI
-        return False
-    import pydicom
-
-    try:
-        with _BoundedFile(path) as stream:
-            ds = pydicom.dcmread(stream, stop_before_pixels=True, specific_tags=["SOPClassUID", "Modality"])
-        return str(ds.get("SOPClassUID", "")) == RTSTRUCT_CLASS or str(ds.get("Modality", "")) == "RTSTRUCT"
-    except damaged_file_errors():              # not DICOM, or too damaged to tell: not an RTSTRUCT
-        return False
 
 
 def read_rtstruct(path, image, progress=None):
@@ -110,7 +90,7 @@ def read_rtstruct(path, image, progress=None):
     >>> labels.values.sum(axis=(1, 2)).tolist(), labels.meta["label_table"]
     ([0, 36, 0], {'1': {'name': 'GTV', 'colour': [255, 0, 0]}})
     """
-    from . import patient_affine  # here, not above: voxrender.io imports this module
+    from ..space.grids import patient_affine  # here, not above: voxrender.io imports this module
 
     path = Path(path)
     progress = progress or identity_progress
@@ -287,10 +267,10 @@ def _read_dataset(path):
     damaged = damaged_file_errors()
     try:
         try:
-            with _BoundedFile(path) as stream:
+            with BoundedFile(path) as stream:
                 dataset = pydicom.dcmread(stream)
         except InvalidDicomError:             # no file meta header: older files, read as a bare data set
-            with _BoundedFile(path) as stream:
+            with BoundedFile(path) as stream:
                 dataset = pydicom.dcmread(stream, force=True)
         sop_class, modality = str(dataset.get("SOPClassUID", "")), str(dataset.get("Modality", ""))
         dataset.get("SeriesInstanceUID")      # pydicom decodes a value when first asked: a damaged one fails here

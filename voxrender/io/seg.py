@@ -28,9 +28,10 @@ import sqlite3
 
 import numpy as np
 
+from .._shared.text import first_line
 from ..errors import InputError
-from ._shared import Reader, Volume, check_fits, check_holds, first_line, quiet_log
-from .dicom import SEG_CLASSES, _BoundedFile, _is_dicom, damaged_file_errors, fault
+from ._dicomfile import SEG_CLASSES, BoundedFile, damaged_file_errors, fault, is_dicom
+from ._shared import Reader, Volume, check_fits, check_holds, quiet_log
 
 OVERLAP_RULE = "a voxel in two segments goes to the lower segment number"
 
@@ -42,12 +43,12 @@ def is_seg(path):
     >>> is_seg(pathlib.Path(tempfile.mkdtemp()))
     False
     """
-    if not path.is_file() or not _is_dicom(path):      # asked of every file: no pydicom for a NIfTI
+    if not path.is_file() or not is_dicom(path):      # asked of every file: no pydicom for a NIfTI
         return False
     import pydicom
 
     try:
-        with _BoundedFile(path) as stream:
+        with BoundedFile(path) as stream:
             ds = pydicom.dcmread(stream, stop_before_pixels=True, specific_tags=["SOPClassUID"])
         return str(ds.get("SOPClassUID", "")) in SEG_CLASSES
     except damaged_file_errors():              # not DICOM, or too damaged to tell: not a SEG
@@ -150,7 +151,7 @@ def _read_dataset(path):
 
     damaged = damaged_file_errors()
     try:
-        with _BoundedFile(path) as stream:
+        with BoundedFile(path) as stream:
             dataset = pydicom.dcmread(stream)
         sop_class = str(dataset.get("SOPClassUID", ""))
     except InvalidDicomError:

@@ -7,8 +7,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._shared.text import first_line
 from ..errors import InputError
-from ._shared import Reader, Volume, check_fits, check_holds, first_line, quiet_log, stack_type, to_grey
+from ._shared import Reader, Volume, check_fits, check_holds, quiet_log, stack_type, to_grey
 from ._stack import Stack
 from .images import damaged_file_errors, place_slice
 

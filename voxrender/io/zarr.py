@@ -27,9 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import orient
+from .._shared.text import first_line
 from ..errors import InputError
-from ._shared import Reader, Volume, check_fits, check_spacing, first_line, identity_progress, stack_type
+from ..space import orient
+from ._shared import Reader, Volume, check_fits, check_spacing, identity_progress, stack_type
 from ._stack import Stack
 
 # The files that make a folder a Zarr node: an array or a group of format 2, any node of format 3.

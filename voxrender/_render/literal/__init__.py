@@ -5,9 +5,9 @@ step by step, one voxel, face or pixel at a time, in plain Python: slow on purpo
 picture.  The two must give the same coverage, the same depths within 1e-5 voxels and the same statistics.
 
 The literal versions share no code with the production geometry (:mod:`voxrender._render.geometry`, the
-:class:`~voxrender.view.View`'s mappings, :mod:`voxrender._render.clip`): :mod:`.geometry` writes the view
+:class:`~voxrender.space.view.View`'s mappings, :mod:`voxrender._render.clip`): :mod:`.geometry` writes the view
 contract out again, so that a slip in either geometry shows as a disagreement.  Of the rest of voxrender they
-take only the region octree (:mod:`voxrender.octree`), and no production module imports them
+take only the region octree (:mod:`voxrender.object.octree`), and no production module imports them
 (``tests/test_render_literal.py`` checks both).
 
 Which test holds which fast renderer to which literal one:

@@ -2,7 +2,7 @@
 
 The literal, paper-shaped renderers are the test oracles of the vectorised ones, so they must not
 share the code they check.  They take nothing from the production geometry
-(:mod:`voxrender._render.geometry`, the :class:`~voxrender.view.View`'s mappings, :mod:`voxrender._render.clip`):
+(:mod:`voxrender._render.geometry`, the :class:`~voxrender.space.view.View`'s mappings, :mod:`voxrender._render.clip`):
 this module computes the rotation (the dynamic-screen paper's Eq. 2), pixel centres, the span of a box on a
 scanline by intersecting the box's projected edges with the scanline (the DDA of the paper's Figs. 8 and 9, in
 its exact limit), the ray's entry into a box by the slab test, and the clip limits, in plain Python floats.  A

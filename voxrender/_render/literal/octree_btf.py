@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ... import octree
+from ...object import octree
 from . import geometry
 
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ... import octree
+from ...object import octree
 from .octree_btf import FaceScan, children_front_to_back, literal_tree, visible_faces
 
 W, B, G = 0, 1, 2

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ... import octree
+from ...object import octree
 from . import geometry
 from .octree_btf import literal_tree
 

@@ -1,0 +1,42 @@
+"""Reading memory-mapped arrays a block at a time, from their file, so that their pages do not stay resident."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def blocks(array, overlap=0, count=1 << 24):
+    """The values of an array a block at a time (:func:`read_mapped`: a file's are read from it, not through its
+    mapping), each block with the first ``overlap`` values of the next.
+    """
+    if not is_mapped(array) or not array.size:
+        yield np.asarray(array)
+        return
+    for first in range(0, array.size, count):
+        yield read_mapped(array, first, first + count + overlap)
+
+
+def is_mapped(array):
+    """Whether ``array`` is a view of a memory-mapped file."""
+    return _mapping(array) is not None
+
+
+def _mapping(array):
+    while array is not None and not isinstance(array, np.memmap):
+        array = getattr(array, "base", None)
+    return array
+
+
+def read_mapped(array, first, last):
+    """``array[first:last]`` (of a one-dimensional ``array``) as a plain array.  When ``array`` is a view of a
+    memory-mapped file, the values are read from the file, so that its pages, unlike those of the mapping once
+    touched, do not stay in the process's memory (a large object's normals are gigabytes).
+    """
+    first, last = max(first, 0), min(last, len(array))
+    mapping = _mapping(array)
+    if mapping is None or mapping.filename is None or not array.flags.c_contiguous:
+        return np.array(array[first:last])
+    start = mapping.offset + array.__array_interface__["data"][0] - mapping.__array_interface__["data"][0]
+    return np.fromfile(mapping.filename, array.dtype, count=max(last - first, 0),
+                       offset=start + first * array.itemsize)
+

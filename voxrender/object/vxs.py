@@ -1,0 +1,181 @@
+"""The ``.vxs`` file: an object's run-length segments (:mod:`voxrender.object.segments`) on disk, with its surface
+normals and further named sections (the region octree's).
+
+A magic line, a JSON header, then the arrays at 64-byte aligned offsets.  :func:`load` memory-maps it, so a
+slice or a row is read without reading the rest; :func:`write_sections` writes it from arrays held in memory
+(:func:`save`) or spilled to files a slab at a time (:class:`Spilled`, :mod:`voxrender.object.stream`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .._shared.files import atomic_output
+from .._shared.mapped import blocks
+from ..errors import InputError
+from .normals import SurfaceNormals
+from .segments import Segments
+
+MAGIC = b"VOXRENDER-SEGMENTS 1\n"
+
+
+_ALIGN = 64
+
+
+def save(segments, path, sections=None):
+    """Write ``segments`` to a ``.vxs`` file (atomically), with further named arrays ``sections`` (e.g. the
+    region octree's, :func:`voxrender.object.octree.sections`), memory-mapped again by :func:`read_sections`.
+    """
+    arrays = {"offsets": np.asarray(segments.offsets, "<i8"), "starts": np.asarray(segments.starts, "<i4"),
+              "ends": np.asarray(segments.ends, "<i4")}
+    arrays.update({name: np.asarray(array).ravel() for name, array in (sections or {}).items()})
+    if segments.labels is not None:
+        arrays["labels"] = np.asarray(segments.labels, "<u2")
+    meta = dict(segments.meta)
+    if segments.normals is not None:
+        index = np.asarray(segments.normals.index)          # int32 when the volume allows (surface_normals)
+        arrays.update(normal_index=np.asarray(index, f"<i{index.dtype.itemsize}"),
+                      normal_packed=np.asarray(segments.normals.packed, "<i2").ravel())
+        meta["normals_from"] = segments.normals.source
+    write_sections(path, segments.shape, segments.spacing, meta, arrays)
+
+
+@dataclass(frozen=True)
+class Spilled:
+    """An array too large to hold, kept as files of its raw bytes written one after another (the parts a slab
+    at a time made): ``count`` values of ``dtype`` in all.  :func:`write_sections` copies them into the file.
+    """
+
+    files: tuple
+    count: int
+    dtype: np.dtype
+
+    @property
+    def nbytes(self):
+        """The bytes of the array."""
+        return self.count * np.dtype(self.dtype).itemsize
+
+
+def write_sections(path, shape, spacing, meta, arrays):
+    """Write a ``.vxs`` file (atomically): its header and ``arrays`` (``{name: ndarray or Spilled}``, little-endian),
+    each at a 64-byte aligned offset.  :func:`save` writes an object held in memory, :mod:`voxrender.object.stream` one
+    made a slab at a time; both give the same bytes for the same object.
+    """
+    layout, position = {}, 0
+    for name, array in arrays.items():
+        count = array.count if isinstance(array, Spilled) else int(array.size)
+        layout[name] = {"offset": position, "count": count, "dtype": np.dtype(array.dtype).str}
+        position += -(-array.nbytes // _ALIGN) * _ALIGN
+    header = json.dumps({"shape": list(shape), "spacing": list(spacing), "meta": meta, "arrays": layout}).encode()
+    data_start = -(-(len(MAGIC) + 8 + len(header)) // _ALIGN) * _ALIGN
+    with atomic_output(path) as tmp, open(tmp, "wb") as f:
+        f.write(MAGIC + np.uint64(len(header)).tobytes() + header)
+        for name, array in arrays.items():
+            f.seek(data_start + layout[name]["offset"])
+            if isinstance(array, Spilled):
+                for part in array.files:
+                    with open(part, "rb") as source:
+                        shutil.copyfileobj(source, f, 16 << 20)
+            else:
+                f.write(np.ascontiguousarray(array).data)    # no copy of the bytes
+        f.truncate(data_start + position)
+
+
+def read_sections(path):
+    """The header and the memory-mapped arrays of a ``.vxs`` file: ``(header, {name: array})``; each array is
+    a view of the file's mapping (:func:`is_mapped`), read from disk as it is used.  An array the file does not
+    hold whole, or of a type that is not a number, is a damaged file.
+    """
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+        with open(path, "rb") as f:
+            start = f.read(len(MAGIC))
+            if start != MAGIC:
+                older = " written by an older voxrender; encode it again" if start.startswith(b"PK") else ""
+                raise InputError(f"{path} is not a voxrender segments file (.vxs){older}")
+            header_length = int(np.frombuffer(f.read(8), "<u8")[0])
+            if header_length > size - len(MAGIC) - 8:
+                raise _damaged(path, f"its header of {header_length} bytes is longer than the file")
+            header = json.loads(f.read(header_length))
+        data_start = -(-(len(MAGIC) + 8 + header_length) // _ALIGN) * _ALIGN
+        raw = np.asarray(np.memmap(path, np.uint8, mode="r"))   # plain views of the mapping: no memmap overhead
+        arrays = {}
+        for name, spec in header["arrays"].items():
+            begin, count = int(spec["offset"]), int(spec["count"])
+            try:
+                dtype = np.dtype(spec["dtype"])
+            except TypeError:
+                raise _damaged(path, f"its array {name} has no number type ({spec['dtype']!r})") from None
+            if dtype.kind not in "biuf" or begin < 0 or count < 0 or data_start + begin + count * dtype.itemsize > size:
+                raise _damaged(path, f"its array {name} ({count} of {dtype}) is not within the file")
+            arrays[name] = raw[data_start + begin:data_start + begin + count * dtype.itemsize].view(dtype)
+    except InputError:
+        raise
+    except (OSError, ValueError, KeyError, IndexError, TypeError, AttributeError) as exc:
+        raise _damaged(path, f"{type(exc).__name__} in its header") from None
+    return header, arrays
+
+
+def _damaged(path, what):
+    kind = ".vxo" if Path(path).suffix.lower() == ".vxo" else ".vxs"
+    return InputError(f"{path} is a damaged {kind} file ({what}); encode it again")
+
+
+def load(path):
+    """Memory-map a ``.vxs`` file written by :func:`save`.
+
+    >>> import tempfile, os
+    >>> from voxrender.object.segments import encode
+    >>> path = os.path.join(tempfile.mkdtemp(), "ball.vxs")
+    >>> save(encode(np.ones((2, 2, 2), bool), meta={"threshold": 1}), path)
+    >>> load(path).voxel_count
+    8
+    """
+    return from_sections(*read_sections(path), path)
+
+
+def from_sections(header, arrays, path):
+    """The :class:`Segments` of a ``.vxs`` file's header and arrays (:func:`read_sections`), checked: runs that
+    leave their grid or an index that does not add up is a damaged file, not a renderer's error later.
+    """
+    shape, spacing, meta = header.get("shape"), header.get("spacing"), header.get("meta", {})
+    if not (isinstance(shape, list) and len(shape) == 3 and all(type(n) is int and n > 0 for n in shape)):
+        raise _damaged(path, f"its shape {shape!r} is not three positive sizes")
+    shape = tuple(shape)
+    if not (isinstance(spacing, list) and len(spacing) == 3
+            and all(type(v) in (int, float) and np.isfinite(v) and v > 0 for v in spacing)):
+        raise _damaged(path, f"its spacing {spacing!r} is not three positive numbers")
+    if not isinstance(meta, dict) or not isinstance(meta.get("label_table", {}), dict):
+        raise _damaged(path, "its meta is not a table of names")
+    missing = [name for name in ("offsets", "starts", "ends") if name not in arrays]
+    if missing:
+        raise _damaged(path, f"it lacks {', '.join(missing)}")
+    if any(array.dtype.kind not in "iu" for array in arrays.values()):
+        raise _damaged(path, "an array is not of integers")
+    offsets, starts, ends = arrays["offsets"], arrays["starts"], arrays["ends"]
+    if (offsets.size != shape[0] * shape[1] + 1 or offsets[0] != 0 or starts.size != offsets[-1]
+            or ends.size != starts.size or np.any(offsets[1:] < offsets[:-1])):
+        raise _damaged(path, "index and runs disagree")
+    for first, last in zip(blocks(starts), blocks(ends), strict=True):
+        if first.size and (first.min() < 0 or last.max() >= shape[2] or np.any(first > last)):
+            raise _damaged(path, "runs leave their grid")
+    normals = None
+    if "normal_index" in arrays:                 # files written before normals were kept have none
+        index, packed = arrays["normal_index"], arrays.get("normal_packed", np.zeros(1, np.int16))
+        rising = all(np.all(block[1:] > block[:-1]) for block in blocks(index, 1))
+        if packed.size != 2 * index.size or index.size and (index[0] < 0 or index[-1] >= math.prod(shape)
+                                                            or not rising):
+            raise _damaged(path, "surface normals and their voxels disagree")
+        normals = SurfaceNormals(shape, index, packed.reshape(-1, 2), str(meta.get("normals_from", "grey values")))
+    labels = arrays.get("labels")           # single-object files have none
+    if labels is not None and labels.size != starts.size:
+        raise _damaged(path, "runs and labels disagree")
+    return Segments(shape, starts, ends, offsets, tuple(spacing), meta, normals, labels)
+

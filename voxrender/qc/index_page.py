@@ -1,0 +1,271 @@
+"""The batch's index page: one row per study, for a reader scanning a batch of many studies at a glance.
+
+A row shows the study's QC sheet and views as thumbnails linked to the pictures, its labels with their colour,
+voxels and millilitres, and flags what needs a look: a failure (with its error), labels that other studies of the
+batch have but this one lacks (:func:`missing_labels`), and overlapping labels.  A study with turntable frames
+gets a turntable: a picture whose frame follows the pointer across it (a mouse moving over it, or a finger or pen
+dragged along it).
+
+The page is one static file, its style and script inline: it opens from the disk (``file://``) with no server
+and asks nothing of the network.  Its links are relative, so the batch's folder can be moved or copied whole.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+from dataclasses import dataclass
+from pathlib import PurePath
+
+from .._shared.files import atomic_output
+
+
+@dataclass
+class StudyRow:
+    """What the index page shows of one study of a batch.
+
+    Parameters
+    ----------
+    name : str
+        The study's name in the batch.
+    input : str
+        Its input path.
+    error : str
+        Why it failed; ``""`` when it did not.
+    sheet : str, optional
+        Its QC sheet (a PNG), relative to the page's folder.
+    pictures : list of (str, str)
+        Its views: ``(caption, PNG path relative to the page's folder)``.
+    turntable : list of str
+        Its turntable's frames (PNG paths relative to the page's folder), in turning order; empty for none.
+    labels : list of dict
+        ``{"label": int, "name": str, "colour": [r, g, b], "voxels": int, "ml": float}``, colours 0-255.
+    overlaps : list of dict
+        ``{"names": [a, b], "voxels": int}``: pairs of labels that claimed the same voxels.
+    seconds : float, optional
+        How long the study took.
+    """
+
+    name: str
+    input: str
+    error: str = ""
+    sheet: str | None = None
+    pictures: list = ()
+    turntable: list = ()
+    labels: list = ()
+    overlaps: list = ()
+    seconds: float | None = None
+
+
+def missing_labels(studies):
+    """The labels each study lacks that other studies of the batch have, by name.
+
+    A study lacks a label when it has none of that name, or has it with 0 voxels.  Failed studies, and studies
+    without labels (a CT alone), are left out on both sides: they show no labels to compare.
+
+    Parameters
+    ----------
+    studies : sequence of StudyRow
+
+    Returns
+    -------
+    dict
+        ``{study name: [label names]}``, only for the studies that lack some, each list in the order the labels
+        first appear in the batch.
+
+    Examples
+    --------
+    >>> liver = {"label": 1, "name": "liver", "colour": [200, 80, 60], "voxels": 900, "ml": 0.9}
+    >>> spleen = {"label": 2, "name": "spleen", "colour": [60, 80, 200], "voxels": 300, "ml": 0.3}
+    >>> missing_labels([StudyRow("a", "a.nrrd", labels=[liver, spleen]),
+    ...                 StudyRow("b", "b.nrrd", labels=[liver, {**spleen, "voxels": 0}]),
+    ...                 StudyRow("c", "c.nrrd", error="cannot read c.nrrd"), StudyRow("d", "d.nrrd")])
+    {'b': ['spleen']}
+    """
+    studies = [study for study in studies if not study.error and study.labels]
+    present = {study.name: [label["name"] for label in study.labels if label["voxels"] > 0] for study in studies}
+    seen = list(dict.fromkeys(name for names in present.values() for name in names))
+    missing = {}
+    for study in studies:
+        others = {name for other, names in present.items() if other != study.name for name in names}
+        lacking = [name for name in seen if name in others and name not in present[study.name]]
+        if lacking:
+            missing[study.name] = lacking
+    return missing
+
+
+def write_index(path, studies, title="voxrender batch"):
+    """Write the batch's index page to ``path``: one row per study, the counts that need a look at the top.
+
+    Parameters
+    ----------
+    path : str or Path
+        The page (``index.html``); the studies' picture paths are relative to its folder.
+    studies : sequence of StudyRow
+        The rows, in the order shown.
+    title : str
+        The page's title and heading.
+
+    Notes
+    -----
+    Every text from the studies is HTML-escaped and every path URL-quoted, so names, inputs and errors holding
+    ``<``, ``&``, ``"``, ``#`` or ``%`` show as they are.  Thumbnails load lazily, as they scroll into view;
+    turntable frames load at once, so that turning never waits for a file.  The page is written atomically.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> write_index(folder / "index.html", [StudyRow("head & neck", "in/head", seconds=2.5)])
+    >>> "head &amp; neck" in (folder / "index.html").read_text()
+    True
+    """
+    studies = list(studies)
+    missing = missing_labels(studies)
+    rows = [_row(number, study, missing.get(study.name, [])) for number, study in enumerate(studies, 1)]
+    counts = [(len(studies), "studies", ""),
+              (sum(bool(study.error) for study in studies), "failed", "bad"),
+              (len(missing), "with missing labels", "warn"),
+              (sum(bool(study.overlaps) for study in studies if not study.error), "with overlaps", "warn")]
+    summary = " ".join(f'<span class="count {kind if number else ""}"><b>{number}</b> {what}</span>'
+                       for number, what, kind in counts)
+    page = _PAGE.format(title=_text(title), summary=summary, rows="\n".join(rows), style=_STYLE, script=_SCRIPT)
+    with atomic_output(path) as tmp:
+        tmp.write_text(page, encoding="utf-8")
+
+
+def _text(value):
+    """Any text from the data, safe inside an element or a quoted attribute."""
+    return html.escape(str(value), quote=True)
+
+
+def _url(path):
+    """A relative path as a link: forward slashes, URL-quoted (a space, ``#`` or ``%`` in a name stays a name)."""
+    from urllib.parse import quote
+
+    return _text(quote(PurePath(path).as_posix()))
+
+
+def _thumbnail(path, caption, size):
+    """A lazily loaded thumbnail linked to its picture, with its caption under it."""
+    link = _url(path)
+    return (f'<figure><a href="{link}"><img src="{link}" loading="lazy" decoding="async" class="{size}" '
+            f'alt="{_text(caption)}"></a><figcaption>{_text(caption)}</figcaption></figure>')
+
+
+def _row(number, study, missing):
+    """One study's table row."""
+    flags = []
+    if study.error:
+        flags.append('<span class="flag bad">failed</span>')
+    if missing:
+        flags.append(f'<span class="flag warn" title="{_text(", ".join(missing))}">missing {len(missing)}</span>')
+    if study.overlaps:
+        flags.append(f'<span class="flag warn">overlap {len(study.overlaps)}</span>')
+
+    about = [f'<div class="name">{_text(study.name)}</div>', f'<div class="input">{_text(study.input)}</div>']
+    if study.seconds is not None:
+        about.append(f'<div class="input">{study.seconds:.1f} s</div>')
+
+    sheet = _thumbnail(study.sheet, "QC sheet", "sheet") if study.sheet else ""
+    views = "".join(_thumbnail(path, caption, "view") for caption, path in study.pictures)
+    if study.error:
+        views = f'<div class="error">{_text(study.error)}</div>' + views
+
+    turntable = ""
+    if study.turntable:
+        frames = [_url(frame) for frame in study.turntable]
+        # The frames' list as JSON in an attribute: the browser undoes the escaping before the script parses it.
+        turntable = (f'<figure><img class="turntable" src="{frames[0]}" data-frames="{_text(json.dumps(frames))}" '
+                     f'tabindex="0" draggable="false" alt="turntable of {_text(study.name)}">'
+                     f'<figcaption>{len(frames)} frames, move across</figcaption></figure>')
+
+    labels = []
+    for label in study.labels:
+        red, green, blue = (int(c) for c in label.get("colour") or (128, 128, 128))
+        empty = ' class="missing"' if label["name"] in missing else ""
+        labels.append(f'<tr{empty}><td><span class="swatch" style="background:rgb({red},{green},{blue})"></span>'
+                      f'{_text(label["name"])}</td><td class="n">{int(label["voxels"]):,}</td>'
+                      f'<td class="n">{float(label["ml"]):,.1f} mL</td></tr>')
+    present = {label["name"] for label in study.labels}
+    labels += [f'<tr class="missing"><td>{_text(name)}</td><td colspan="2">missing</td></tr>'
+               for name in missing if name not in present]
+    labels += [f'<tr class="overlap"><td colspan="3">overlap: {" / ".join(_text(n) for n in overlap["names"])}, '
+                f'{int(overlap["voxels"]):,} voxels</td></tr>' for overlap in study.overlaps]
+    label_table = f'<table class="labels">{"".join(labels)}</table>' if labels else ""
+
+    kind = "failed" if study.error else ("flagged" if flags else "clean")
+    cells = [f'<td class="n">{number}</td>', f'<td>{"".join(about)}</td>', f'<td>{"".join(flags)}</td>',
+             f"<td>{sheet}</td>", f'<td class="views">{views}</td>', f"<td>{turntable}</td>", f"<td>{label_table}</td>"]
+    return f'<tr class="{kind}">{"".join(cells)}</tr>'
+
+
+_STYLE = """
+body{font:13px/1.35 system-ui,sans-serif;margin:12px 16px;color:#222;background:#fff}
+h1{font-size:18px;margin:0 0 6px}
+.summary{margin:0 0 10px;display:flex;gap:14px;align-items:center;flex-wrap:wrap}
+.count.bad{color:#b00020}.count.warn{color:#8a5a00}
+table.studies{border-collapse:collapse;width:100%}
+.studies>thead th{position:sticky;top:0;background:#f2f2f2;text-align:left;font-weight:600;padding:4px 6px;
+ border-bottom:1px solid #bbb;z-index:1}
+.studies>tbody>tr>td{padding:4px 6px;border-bottom:1px solid #e2e2e2;vertical-align:top}
+tr.failed{background:#fdecee}
+.name{font-weight:600;overflow-wrap:anywhere}.input{color:#666;font-size:11px;overflow-wrap:anywhere}
+.error{color:#b00020;font-weight:600;white-space:pre-wrap;max-width:60em;margin-bottom:4px}
+.flag{display:inline-block;margin:0 3px 3px 0;padding:1px 6px;border-radius:3px;font-size:11px;font-weight:700;
+ text-transform:uppercase;white-space:nowrap}
+.flag.bad{background:#b00020;color:#fff}.flag.warn{background:#ffc940;color:#3a2a00}
+figure{display:inline-block;margin:0 6px 2px 0;vertical-align:top;text-align:center}
+figcaption{font-size:11px;color:#555;max-width:140px;overflow:hidden;text-overflow:ellipsis;white-space:nowrap}
+img{background:#000;display:block}
+img.sheet{height:96px;min-width:48px}img.view{height:96px;min-width:48px}
+img.turntable{height:128px;min-width:64px;cursor:ew-resize;touch-action:none;user-select:none}
+table.labels{border-collapse:collapse;font-size:12px}
+table.labels td{padding:0 6px 0 0;white-space:nowrap}
+td.n{text-align:right;font-variant-numeric:tabular-nums}
+.swatch{display:inline-block;width:10px;height:10px;margin-right:4px;border:1px solid #0004;vertical-align:-1px}
+tr.missing td{color:#8a5a00;font-weight:600}tr.missing td:first-child::after{content:" \\26A0"}
+tr.overlap td{color:#8a5a00}
+body.only-flagged tr.clean{display:none}
+"""
+
+# The turntable: the frame is the pointer's place across the picture (left edge the first frame, right edge the
+# last), so a mouse turns it by moving over it and a finger or pen by dragging (captured, so it may leave the
+# picture); the arrow keys step it.  The frames are loaded up front and kept, so a turn never waits for a file.
+_SCRIPT = """
+document.querySelectorAll("img.turntable").forEach(function (img) {
+  var frames = JSON.parse(img.dataset.frames), index = 0;
+  img.preloaded = frames.map(function (src) { var frame = new Image(); frame.src = src; return frame; });
+  function show(i) {
+    i = Math.min(frames.length - 1, Math.max(0, i));
+    if (i !== index) { index = i; img.src = frames[i]; }
+  }
+  function follow(event) {
+    var box = img.getBoundingClientRect();
+    show(Math.floor((event.clientX - box.left) / box.width * frames.length));
+  }
+  img.addEventListener("pointerdown", function (event) { img.setPointerCapture(event.pointerId); follow(event); });
+  img.addEventListener("pointermove", follow);
+  img.addEventListener("keydown", function (event) {
+    var step = {ArrowLeft: -1, ArrowRight: 1}[event.key];
+    if (step) { event.preventDefault(); show((index + step + frames.length) % frames.length); }
+  });
+});
+document.getElementById("only-flagged").addEventListener("change", function (event) {
+  document.body.classList.toggle("only-flagged", event.target.checked);
+});
+"""
+
+_PAGE = """<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><meta name="viewport" content="width=device-width">
+<link rel="icon" href="data:,"><title>{title}</title><style>{style}</style></head>
+<body><h1>{title}</h1>
+<div class="summary">{summary}<label><input type="checkbox" id="only-flagged"> only studies with a flag</label></div>
+<table class="studies"><thead><tr><th>#</th><th>study</th><th>flags</th><th>sheet</th><th>views</th><th>turntable</th>
+<th>labels</th></tr></thead>
+<tbody>
+{rows}
+</tbody></table>
+<script>{script}</script>
+</body></html>
+"""
