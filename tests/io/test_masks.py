@@ -8,6 +8,7 @@ from conftest import data_path
 
 import voxrender
 from voxrender import io
+from voxrender._shared import label_sets
 from voxrender.errors import InputError
 from voxrender.space.grids import patient_affine
 
@@ -82,23 +83,31 @@ def test_masks_are_numbered_by_the_natural_order_of_their_names(tmp_path):
     assert volume.values[:, 0, 0].tolist() == [4, 3, 1, 2]      # slice z held rib_10, rib_2, Liver, rib_1
 
 
-def test_overlaps_go_to_the_first_numbered_and_are_counted_and_empty_masks_listed(tmp_path):
+def test_each_mask_keeps_its_own_voxels_the_smallest_shows_and_overlaps_say_which_is_inside(tmp_path):
     folder = tmp_path / "masks"
     folder.mkdir()
-    boxes = {"a": slice(0, 10), "b": slice(5, 15), "c": slice(8, 20), "d_empty": slice(0, 0)}
+    boxes = {"a": slice(0, 10), "b": slice(5, 15), "c": slice(8, 20), "d_empty": slice(0, 0), "e_in_a": slice(2, 4)}
     for name, x in boxes.items():
         mask = np.zeros((3, 4, 20), np.uint8)                   # [z, y, x]
         mask[:, :, x] = 1
         save_nifti(folder / f"{name}.nii.gz", mask, STORED_LPS)
     volume = io.read_volume(folder)
-    # a keeps x 0..9; b takes 10..14; c takes 15..19; c lies on a's 8..9 and b's 10..14
-    assert volume.values[0, 0].tolist() == [1] * 10 + [2] * 5 + [3] * 5
+    codes, sets = volume.values, volume.meta["label_sets"]
     per_column = 3 * 4
+    own = label_sets.structure_counts(codes, sets)
+    assert own == {1: 10 * per_column, 2: 10 * per_column, 3: 12 * per_column, 5: 2 * per_column}
+    for label, name in enumerate(boxes, start=1):               # each mask's own voxels, exactly
+        expected = np.zeros(20, bool)
+        expected[boxes[name]] = True
+        assert (label_sets.member_mask(codes, sets, label)[0, 0] == expected).all(), name
+    # the pictures show the smallest structure at a shared voxel, the lower label of two of one size (a and b)
+    assert label_sets.resolve(codes, sets)[0, 0].tolist() == [1, 1, 5, 5, 1, 1, 1, 1, 1, 1] + [2] * 5 + [3] * 5
     assert volume.meta["overlaps"] == [
         {"labels": [1, 2], "names": ["a", "b"], "voxels": 5 * per_column},
         {"labels": [1, 3], "names": ["a", "c"], "voxels": 2 * per_column},
-        {"labels": [2, 3], "names": ["b", "c"], "voxels": 5 * per_column}]
-    assert volume.meta["overlap_rule"] == "a voxel in two masks goes to the one numbered first"
+        {"labels": [1, 5], "names": ["a", "e_in_a"], "voxels": 2 * per_column, "inside": "e_in_a"},
+        {"labels": [2, 3], "names": ["b", "c"], "voxels": 7 * per_column}]
+    assert volume.meta["overlap_rule"] == label_sets.RULE
     assert volume.meta["empty_labels"] == [4] and volume.meta["label_table"]["4"]["name"] == "d_empty"
 
 

@@ -24,6 +24,7 @@ from rtstruct_files import (
 from skimage.draw import polygon2mask
 
 from voxrender import io
+from voxrender._shared import label_sets
 from voxrender.errors import InputError
 from voxrender.io._dicomfile import is_rtstruct
 from voxrender.io.rtstruct import check_reference, fill_even_odd, read_rtstruct
@@ -147,16 +148,19 @@ def test_labels_follow_roi_numbers_with_names_and_colours(tmp_path):
     assert labels.values[5, 10, 30] == 1 and labels.values[10, 30, 10] == 2 and labels.values[5, 10, 10] == 3
 
 
-def test_overlapping_rois_go_to_the_lower_label_and_are_counted(tmp_path):
+def test_overlapping_rois_each_keep_their_voxels_and_an_organ_inside_body_shows(tmp_path):
     ct, _ = write_ct(tmp_path / "ct")
     rois = [Roi("body", [square((20, 20), 20, z) for z in (-90, -88)]),
             Roi("lung", [square((25, 20), 10, z) for z in (-90, -88, -86)]),     # 5 of its 10 columns in body
             Roi("heart", [square((14, 20), 4, -90)])]                            # inside body
     labels = read_rtstruct(write_rtstruct(tmp_path / "rs.dcm", rois), ct)
     assert labels.meta["overlaps"] == [{"labels": [1, 2], "names": ["body", "lung"], "voxels": 2 * 100},
-                                       {"labels": [1, 3], "names": ["body", "heart"], "voxels": 16}]
-    assert np.bincount(labels.values.ravel(), minlength=4)[1:].tolist() == [2 * 400, 100, 0]
-    assert labels.meta["empty_labels"] == [] and "lower label" in labels.meta["overlap_rule"]
+                                       {"labels": [1, 3], "names": ["body", "heart"], "voxels": 16, "inside": "heart"}]
+    codes, sets = labels.values, labels.meta["label_sets"]
+    assert label_sets.structure_counts(codes, sets) == {1: 2 * 400, 2: 3 * 100, 3: 16}
+    shown = np.bincount(label_sets.resolve(codes, sets).ravel(), minlength=4)[1:].tolist()
+    assert shown == [2 * 400 - 2 * 100 - 16, 3 * 100, 16]          # heart and lung are smaller than body
+    assert labels.meta["empty_labels"] == [] and labels.meta["overlap_rule"] == label_sets.RULE
 
 
 # ---------------------------------------------------------------- contours not drawn

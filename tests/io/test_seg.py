@@ -8,6 +8,7 @@ from formats import refused_cuts
 from seg_files import SHAPE, blobs, complete_sources, write_ct, write_ct_and_seg, write_seg
 
 from voxrender import io
+from voxrender._shared import label_sets
 from voxrender.errors import InputError
 from voxrender.io import seg as seg_reader
 from voxrender.space.grids import patient_affine
@@ -104,7 +105,7 @@ def test_sparse_frames_land_on_their_slices(tmp_path):
     assert np.array_equal(placed, labels)     # the CT is axial, stored as read: canonical already
 
 
-def test_overlap_goes_to_the_lower_number_and_is_counted(tmp_path):
+def test_overlapping_segments_each_keep_their_voxels_and_the_smaller_shows(tmp_path):
     masks = np.zeros(SHAPE + (3,), np.uint8)
     masks[2:6, 2:8, 2:8, 0] = 1
     masks[4:8, 5:10, 5:10, 1] = 1              # 2 x 3 x 3 voxels shared with segment 1
@@ -113,13 +114,17 @@ def test_overlap_goes_to_the_lower_number_and_is_counted(tmp_path):
     names = ["a", "b", "c", "empty"]
     masks = np.concatenate([masks, np.zeros(SHAPE + (1,), np.uint8)], axis=-1)
     seg = read(write_seg(tmp_path / "seg.dcm", sources, masks, names))
-    expected = np.zeros(SHAPE, np.uint8)
-    for k in (3, 2, 1):                       # the lower number written last: it wins
-        expected[masks[..., k - 1] > 0] = k
     ct = io.read_volume(tmp_path / "ct")
-    assert np.array_equal(on_grid_of(seg, ct), expected)
+    codes = on_grid_of(seg, ct)
+    sets = seg.meta["label_sets"]
+    for k in (1, 2, 3):                       # each segment keeps its own voxels
+        assert np.array_equal(label_sets.member_mask(codes, sets, k), masks[..., k - 1] > 0), k
+    expected = np.zeros(SHAPE, np.uint8)
+    for k in (1, 2, 3):                       # sizes 144, 100, 8: the smaller written last, shown
+        expected[masks[..., k - 1] > 0] = k
+    assert np.array_equal(label_sets.resolve(codes, sets), expected)
     assert seg.meta["overlaps"] == [{"labels": [1, 2], "names": ["a", "b"], "voxels": 18},
-                                    {"labels": [2, 3], "names": ["b", "c"], "voxels": 8}]
+                                    {"labels": [2, 3], "names": ["b", "c"], "voxels": 8, "inside": "c"}]
     assert seg.meta["empty_labels"] == [4] and seg.meta["label_table"]["4"]["name"] == "empty"
 
 

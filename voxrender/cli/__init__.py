@@ -658,10 +658,11 @@ def info_command(input_path, as_json, **options):
             for label, row in value.items():
                 click.echo(f"  {label} {row['name']}: {row['voxels']} voxels, {row['ml']:g} mL")
         elif key == "overlaps":
-            click.echo(f"overlaps: {len(value)} pair{'s' * (len(value) > 1)} of labels (a voxel in both goes to "
-                       "the first-numbered)")
+            click.echo(f"overlaps: {len(value)} pair{'s' * (len(value) > 1)} of labels (each keeps its own voxels; "
+                       "the pictures show the smaller)")
             for pair in value:
-                click.echo(f"  {' and '.join(pair['names'])}: {pair['voxels']} voxels")
+                inside = f", {pair['inside']} lies inside the other" if pair.get("inside") else ""
+                click.echo(f"  {' and '.join(pair['names'])}: {pair['voxels']} voxels{inside}")
         elif isinstance(value, list) and value and all(isinstance(v, str) for v in value):
             click.echo(f"{key.replace('_', ' ')}:")
             for line in value:
@@ -723,7 +724,7 @@ def _describe_labels(volume, values, source):
     from ..pictures.labels import label_list
 
     prep.check_labels(values, source)
-    counts = prep.label_counts(values)
+    counts = prep.label_counts(values, volume.meta.get("label_sets"))      # each structure's own voxels
     stored = volume.meta.get("label_table") or {}
     table = colours.label_colours(sorted(set(counts) | {int(k) for k in stored}), stored)
     rows = label_list(table, counts, volume.spacing)

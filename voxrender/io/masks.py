@@ -9,9 +9,10 @@ orientation are checked as for any volume) and becomes one label:
   (:func:`~voxrender.io.natural_key`: ``rib_2`` before ``rib_10``, case aside).
 - **Grid.** The label map lies on the first mask's grid; a mask on another grid is placed on it by patient position
   (:func:`voxrender.space.grids.pair`, nearest neighbour).
-- **Overlaps.** A voxel in two masks goes to the one numbered first.  Each pair that overlaps is reported in
-  ``meta["overlaps"]``: ``{"labels": [a, b], "names": [...], "voxels": n}``, the voxels of mask b that label a had
-  already taken.
+- **Overlaps.** Each mask keeps its own voxels: a voxel in several masks holds the code of that set of masks
+  (:mod:`voxrender._shared.label_sets`, named in ``meta["label_sets"]``), and the pictures show the smallest.  Each
+  pair that overlaps is reported in ``meta["overlaps"]``: ``{"labels": [a, b], "names": [...], "voxels": n}``, with
+  ``"inside"`` naming the one that lies wholly inside the other.
 - **Empty masks** keep their label and name, and are listed in ``meta["empty_labels"]``.
 
 ``meta["label_table"]`` names every label (``{"1": {"name": "liver", "colour": None}}``: mask files carry no colour).
@@ -25,12 +26,12 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
+from .._shared import label_sets
 from ..errors import InputError
 from ._shared import Reader, Volume, check_fits, natural_key, some_names, volume_files
 
 SUFFIXES = (".nii", ".nii.gz", ".nrrd", ".nhdr")
 NAME_ENDINGS = (".nii.gz", ".seg.nrrd", ".nii", ".nrrd", ".nhdr")       # longest first: what a name drops
-OVERLAP_RULE = "a voxel in two masks goes to the one numbered first"
 # Files are read two at a time (gzip inflation and NumPy's passes let go of Python's lock), at most this many
 # ahead of the one being placed: a few masks in memory at once, never the whole folder.
 WORKERS, LOOK_AHEAD = 2, 2
@@ -74,9 +75,9 @@ def read_masks(path, progress):
     Returns
     -------
     Volume
-        Labels (uint8 for up to 255 masks, else uint16) on the first mask's grid, with its spacing, direction
-        and origin; ``meta`` holds ``label_table``, ``overlaps``, ``empty_labels``, ``overlap_rule`` and
-        ``masks`` (how many).
+        Label codes (uint8, or uint16 beyond 254 masks and their shared sets) on the first mask's grid, with its
+        spacing, direction and origin; ``meta`` holds ``label_table``, ``label_sets``, ``overlaps``,
+        ``empty_labels``, ``overlap_rule`` and ``masks`` (how many).
 
     Examples
     --------
@@ -87,9 +88,9 @@ def read_masks(path, progress):
     ...     nibabel.save(nibabel.Nifti1Image(mask, np.eye(4)), folder / f"{name}.nii.gz")
     >>> volume = read_masks(folder, lambda items, length, label: items)
     >>> volume.meta["label_table"]["1"]["name"], np.bincount(volume.values.ravel()).tolist()
-    ('liver', [0, 32, 16])
-    >>> volume.meta["overlaps"]
-    [{'labels': [1, 2], 'names': ['liver', 'spleen'], 'voxels': 8}]
+    ('liver', [0, 24, 16, 8])
+    >>> volume.meta["label_sets"], volume.meta["overlaps"]
+    ({'3': [2, 1]}, [{'labels': [1, 2], 'names': ['liver', 'spleen'], 'voxels': 8}])
     """
     if not path.is_dir():
         raise InputError(f"{path} is a file; the masks format reads a folder of masks, one NIfTI or NRRD file each",
@@ -105,9 +106,8 @@ def read_masks(path, progress):
         raise InputError(f"{path} holds two masks of one name ({', '.join(twice)}); keep one of them")
     if len(files) > np.iinfo(np.uint16).max:
         raise InputError(f"{path} holds {len(files)} masks; a label map takes at most 65535")
-    dtype = np.uint8 if len(files) <= np.iinfo(np.uint8).max else np.uint16
-    labels = first = None
-    overlaps, empty = [], []
+    painter = first = None
+    empty = []
     pool = ThreadPoolExecutor(WORKERS)
     try:
         pending = collections.deque(pool.submit(_read_mask, f) for f in files[:LOOK_AHEAD])
@@ -117,32 +117,27 @@ def read_masks(path, progress):
                 pending.append(pool.submit(_read_mask, files[label + LOOK_AHEAD - 1]))
             if first is None:
                 first = volume
-                check_fits(volume.shape, dtype, path)
-                labels = np.zeros(volume.shape, dtype)
+                check_fits(volume.shape, np.uint8 if len(files) < 255 else np.uint16, path)
+                painter = label_sets.Painter(volume.shape, len(files))
             else:
                 found = _on_grid(volume, found, first, file, files[0])
             if found is None:
                 empty.append(label)
                 continue
-            box, inside = found
-            placed = labels[box]                       # a view: the mask's bounding box in the label map
-            under = placed[inside]                     # the labels earlier masks gave its voxels
-            taken = np.bincount(under, minlength=label)
-            overlaps += [{"labels": [int(a), label], "names": [names[a - 1], names[label - 1]],
-                          "voxels": int(taken[a])} for a in np.flatnonzero(taken[1:]) + 1]
-            under[under == 0] = label                  # the first-numbered mask keeps a shared voxel
-            placed[inside] = under
+            painter.paint(label, *found)
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
-    meta = {"format": "masks", "masks": len(files), "overlap_rule": OVERLAP_RULE, "overlaps": overlaps,
-            "empty_labels": empty, "label_table": {str(k): {"name": name, "colour": None}
-                                                   for k, name in enumerate(names, start=1)}}
+    codes, sets = painter.finish()
+    table = {str(k): {"name": name, "colour": None} for k, name in enumerate(names, start=1)}
+    meta = {"format": "masks", "masks": len(files), "overlap_rule": label_sets.RULE, "label_sets": sets,
+            "overlaps": label_sets.overlap_report(codes, sets, dict(enumerate(names, start=1))),
+            "empty_labels": empty, "label_table": table}
     for key in ("origin", "orientation_from", "spacing_from"):
         if key in first.meta:
             meta[key] = first.meta[key]
     if "reoriented" in first.meta:
         meta["masks_reoriented"] = f"{files[0].name}: {first.meta['reoriented']}"
-    return Volume(labels, first.spacing, meta, first.direction)
+    return Volume(codes, first.spacing, meta, first.direction)
 
 
 def _read_mask(file):

@@ -22,9 +22,10 @@ An RTSTRUCT has no grid of its own, so it is read onto its image's: :func:`read_
 - **Pixels.** A voxel belongs to an ROI when its centre is inside the polygon (:func:`fill_even_odd`), as
   scikit-image's ``polygon2mask`` decides; a centre on an edge belongs to the pixels right of and below it, so two
   ROIs that share an edge do not overlap.
-- **Overlaps.** A voxel in two ROIs goes to the lower label, and each pair that overlaps is reported in
-  ``meta["overlaps"]`` as ``{"labels": [a, b], "names": [...], "voxels": n}``, the voxels of ROI b that ROI a had
-  already taken.  ROIs without a voxel are listed in ``meta["empty_labels"]``.
+- **Overlaps.** Each ROI keeps its own voxels (an organ inside BODY too): a voxel in several holds the code of that
+  set (:mod:`voxrender._shared.label_sets`, ``meta["label_sets"]``), and each pair that overlaps is reported in
+  ``meta["overlaps"]`` as ``{"labels": [a, b], "names": [...], "voxels": n}``, with ``"inside"`` naming the one
+  wholly inside the other.  ROIs without a voxel are listed in ``meta["empty_labels"]``.
 - **Its image.** ``meta["referenced_series"]`` is the SeriesInstanceUID of the CT it was drawn on and
   ``meta["frame_of_reference"]`` its FrameOfReferenceUID; :func:`check_reference` refuses another image.
 """
@@ -36,11 +37,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .._shared import label_sets
 from ..errors import InputError
 from ._dicomfile import RTSTRUCT_CLASS, BoundedFile, damaged_file_errors, fault
 from ._shared import Volume, check_fits, identity_progress
 
-OVERLAP_RULE = "a voxel in two ROIs goes to the lower label (the lower ROINumber)"
 CLOSED_TYPES = ("CLOSED_PLANAR", "CLOSEDPLANAR_XOR")
 OPEN_TYPES = ("POINT", "OPEN_PLANAR", "OPEN_NONPLANAR")
 # Contours of one ROI on one slice whose planes lie within this many slices of each other are on one plane (an
@@ -101,33 +102,29 @@ def read_rtstruct(path, image, progress=None):
     dataset = _read_dataset(path)
     numbers, names, colours, frame_of_reference = _structures(dataset, path)
     contours, skipped = _contours(dataset, path, numbers)
-    dtype = np.uint8 if len(numbers) <= np.iinfo(np.uint8).max else np.uint16
-    check_fits(image.shape, dtype, path)
-    labels = np.zeros(image.shape, dtype)
+    check_fits(image.shape, np.uint8 if len(numbers) < 255 else np.uint16, path)
     affine = patient_affine(image)
     to_voxel = np.linalg.inv(affine)
     axis = _slice_axis(image, contours, to_voxel)
-    planes = np.moveaxis(labels, 2 - axis, 0)                 # planes[k]: slice k (a view), rows and columns
+    painter = label_sets.Painter(image.shape, len(numbers), plane_axis=2 - axis)   # slice k: index k, rows, columns
     in_plane = sorted({0, 1, 2} - {axis})                     # voxel axes of its columns, then its rows
+    plane_shape = tuple(np.delete(image.shape, 2 - axis))
+    planes_shape = (image.shape[2 - axis], *plane_shape)
     drawable = sum(len(found) for found in contours.values())
-    drawn, overlaps, empty, first_points = 0, [], [], []
+    drawn, empty, first_points = 0, [], []
     for label, number in enumerate(progress(numbers, len(numbers), "rasterising RTSTRUCT ROIs"), start=1):
-        on_slices, firsts = _on_slices(contours[number], to_voxel, axis, in_plane, planes.shape, skipped)
+        on_slices, firsts = _on_slices(contours[number], to_voxel, axis, in_plane, planes_shape, skipped)
         first_points += firsts
-        taken, filled = np.zeros(label, np.int64), 0
+        filled = 0
         for k, polygons in on_slices.items():
-            rows, columns, inside = _fill_box(polygons, planes.shape[1:])
-            placed = planes[k][rows, columns]                 # a view: the box of this slice's contours
-            under = placed[inside]                            # the labels lower ROIs gave its voxels
-            taken += np.bincount(under, minlength=label)[:label]
-            under[under == 0] = label                         # the lower label keeps a shared voxel
-            placed[inside] = under
+            rows, columns, inside = _fill_box(polygons, plane_shape)
+            painter.paint(label, (k, rows, columns), inside)
             filled += int(inside.sum())
             drawn += len(polygons)
-        overlaps += [{"labels": [int(a), label], "names": [names[a - 1], names[label - 1]], "voxels": int(taken[a])}
-                     for a in np.flatnonzero(taken[1:]) + 1]
         if not filled:
             empty.append(label)
+    labels, sets = painter.finish()
+    overlaps = label_sets.overlap_report(labels, sets, dict(enumerate(names, start=1)))
     if drawable and not drawn:
         raise _all_outside(path, drawable, first_points, affine, axis, image, dataset)
     if not drawable:
@@ -143,7 +140,7 @@ def read_rtstruct(path, image, progress=None):
             "frame_of_reference": frame_of_reference,
             "series": str(dataset.get("SeriesInstanceUID", "")), "contours": drawn,
             "skipped_contours": {why: n for why, n in skipped.items() if n},
-            "overlap_rule": OVERLAP_RULE, "overlaps": overlaps, "empty_labels": empty,
+            "overlap_rule": label_sets.RULE, "label_sets": sets, "overlaps": overlaps, "empty_labels": empty,
             "label_table": {str(k): {"name": names[k - 1], "colour": colours[k - 1]}
                             for k in range(1, len(numbers) + 1)}}
     for key in ("origin", "orientation", "orientation_from", "spacing_from"):

@@ -8,9 +8,10 @@ grid spans the planes the SEG stores, in its own orientation, on the referenced 
 
 - **Labels.** A voxel's label is its segment number.  A FRACTIONAL segment holds the voxels whose fraction is at
   least one half.
-- **Overlaps.** BINARY and FRACTIONAL segments may overlap: a voxel in two segments goes to the lower segment
-  number, and each pair that overlaps is reported in ``meta["overlaps"]`` as ``{"labels": [a, b], "names": [...],
-  "voxels": n}``, the voxels of segment b that segment a had already taken.
+- **Overlaps.** BINARY and FRACTIONAL segments may overlap: each keeps its own voxels, a voxel in several holding
+  the code of that set (:mod:`voxrender._shared.label_sets`, ``meta["label_sets"]``), and each pair that overlaps
+  is reported in ``meta["overlaps"]`` as ``{"labels": [a, b], "names": [...], "voxels": n}``, with ``"inside"``
+  naming the one wholly inside the other.
 - **Names and colours.** ``meta["label_table"]`` names every segment by its SegmentLabel, with its
   RecommendedDisplayCIELabValue as sRGB 0..255 (``None`` when the file gives none).  Segments without a pixel are
   listed in ``meta["empty_labels"]``.
@@ -28,12 +29,11 @@ import sqlite3
 
 import numpy as np
 
+from .._shared import label_sets
 from .._shared.text import first_line
 from ..errors import InputError
 from ._dicomfile import SEG_CLASSES, BoundedFile, damaged_file_errors, fault, is_dicom
 from ._shared import Reader, Volume, check_fits, check_holds, quiet_log
-
-OVERLAP_RULE = "a voxel in two segments goes to the lower segment number"
 
 
 def is_seg(path):
@@ -121,10 +121,10 @@ def read_seg(path, progress):
     try:
         with quiet_log("highdicom"):
             if kind == "LABELMAP":
-                labels, overlaps, empty = _labelmap(seg, numbers, shape, dtype, path)
+                labels, sets, overlaps, empty = _labelmap(seg, numbers, shape, dtype, path)
             else:
-                labels, overlaps, empty = _segments(seg, dataset, numbers, names, geometry, shape, dtype, progress,
-                                                    path)
+                labels, sets, overlaps, empty = _segments(seg, dataset, numbers, names, geometry, shape, progress,
+                                                          path)
     except InputError:
         raise
     except damaged as exc:
@@ -137,7 +137,7 @@ def read_seg(path, progress):
             "frame_of_reference": str(dataset.get("FrameOfReferenceUID", "")),
             "series": str(dataset.get("SeriesInstanceUID", "")),
             "description": str(dataset.get("SeriesDescription", "")),
-            "overlap_rule": OVERLAP_RULE, "overlaps": overlaps, "empty_labels": empty,
+            "overlap_rule": label_sets.RULE, "label_sets": sets, "overlaps": overlaps, "empty_labels": empty,
             "label_table": {str(n): {"name": names[n], "colour": colours[n]} for n in numbers},
             "origin": [float(v) for v in affine[:3, 3]], "spacing_from": "DICOM SEG",
             "orientation_from": "DICOM SEG ImageOrientationPatient and the frame positions"}
@@ -205,19 +205,19 @@ def _labelmap(seg, numbers, shape, dtype, path):
         raise InputError(f"DICOM SEG {path}: its pixels hold segment {undescribed[0]}, which its SegmentSequence "
                          "does not describe; the file is damaged")
     counts = np.pad(counts, (0, max(0, max(numbers) + 1 - len(counts))))
-    return labels, [], [n for n in numbers if counts[n] == 0]
+    return labels, {}, [], [n for n in numbers if counts[n] == 0]
 
 
-def _segments(seg, dataset, numbers, names, geometry, shape, dtype, progress, path):
-    """BINARY or FRACTIONAL segments into one label map, frame by frame, each frame placed on its plane; frames
-    are taken by segment number, so that the lower number keeps a voxel two segments hold, and each overlap is
-    counted.  Frames, not one ``get_volume`` a segment: that would index all the frames again for each segment.
+def _segments(seg, dataset, numbers, names, geometry, shape, progress, path):
+    """BINARY or FRACTIONAL segments into one map of label codes, frame by frame, each frame placed on its plane;
+    each segment keeps its own voxels (:mod:`voxrender._shared.label_sets`).  Frames, not one ``get_volume`` a
+    segment: that would index all the frames again for each segment.
     """
     frame_segments, frame_planes = _frame_places(dataset, geometry, shape, names, path)
     fractional = seg.segmentation_type.value == "FRACTIONAL"
     half = float(dataset.get("MaximumFractionalValue", 255) or 255) / 2 if fractional else 0.5
-    labels = np.zeros(shape, dtype)
-    shared, held = {}, set()
+    painter = label_sets.Painter(shape, max(numbers))
+    held = set()
     order = np.lexsort((frame_planes, frame_segments))
     for index in progress(order.tolist(), len(order), "reading SEG frames"):
         number, plane = int(frame_segments[index]), int(frame_planes[index])
@@ -225,20 +225,11 @@ def _segments(seg, dataset, numbers, names, geometry, shape, dtype, progress, pa
         if inside.shape != shape[1:]:
             raise InputError(f"DICOM SEG {path}: frame {index + 1} is {inside.shape[1]}x{inside.shape[0]} pixels, "
                              f"not the {shape[2]}x{shape[1]} of its Columns and Rows; the file is damaged")
-        if not inside.any():
-            continue
-        held.add(number)
-        placed = labels[plane]                    # a view: the plane this frame lies on
-        under = placed[inside]                    # the labels lower segments gave its pixels
-        if under.any():
-            earlier, count = np.unique(under[under > 0], return_counts=True)
-            for a, n in zip(earlier.tolist(), count.tolist(), strict=True):
-                shared[a, number] = shared.get((a, number), 0) + n
-        under[under == 0] = number
-        placed[inside] = under
-    overlaps = [{"labels": [a, b], "names": [names[a], names[b]], "voxels": n}
-                for (a, b), n in sorted(shared.items(), key=lambda item: item[0][::-1])]
-    return labels, overlaps, [n for n in numbers if n not in held]
+        if inside.any():
+            held.add(number)
+            painter.paint(number, (plane,), inside)
+    codes, sets = painter.finish()
+    return codes, sets, label_sets.overlap_report(codes, sets, names), [n for n in numbers if n not in held]
 
 
 def _frame_places(dataset, geometry, shape, names, path):

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import io
+from .._shared import label_sets
 from ..errors import InputError
 from ..io._dicomfile import is_rtstruct
 from . import prep, segments, vxs
@@ -288,8 +289,9 @@ def _encode_labels(volume, read, prepare, meta, progress):
 
         labels[~remove_small_objects(labels > 0, max_size=prepare.min_object - 1, connectivity=3)] = 0
     if prepare.threshold is None and prepare.min_object <= 1:   # the labels as given: their mL on their own grid
-        voxel_ml = float(np.prod(volume.spacing)) / 1000
-        meta["label_ml"] = {str(label): round(count * voxel_ml, 3) for label, count in info["voxels"].items()}
+        meta["label_ml"] = {str(label): label_sets.millilitres(count, volume.spacing)
+                            for label, count in info["voxels"].items()}
+        meta["label_voxels"] = {str(label): count for label, count in info["voxels"].items()}
     if selection.separate:
         table = label_volume.meta.get("label_table")
         if table:

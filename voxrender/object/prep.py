@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._shared import label_sets
 from ..errors import InputError
 
 
@@ -516,7 +517,9 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
     Parameters
     ----------
     volume : Volume
-        Integer labels, 0 for the background.
+        Integer labels, 0 for the background; where structures share voxels, the codes of
+        ``meta["label_sets"]`` (:mod:`voxrender._shared.label_sets`): a shared voxel takes the most specific of
+        the chosen structures it is in, and each structure's voxels are its own.
     selection : LabelSelection, optional
     crop, voxel, resample
         As for :func:`binarize`, so that a label map and its CT give the same grid.
@@ -541,7 +544,8 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
     values = _crop(volume.values, crop)
     source = volume.meta.get("source", "the label map")
     check_labels(values, source)
-    counts = label_counts(values)                                         # a count, not a sort of every voxel
+    sets = volume.meta.get("label_sets") or {}                            # structures that share voxels
+    counts = label_counts(values, sets)                                   # each structure's own voxels
     chosen = chosen_labels(counts, selection.chosen, source, crop is not None)
     voxel, out_shape = cubic_grid(values.shape, volume.spacing, voxel, resample)
     spacing = tuple(float(s) for s in volume.spacing)
@@ -551,7 +555,7 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
                    for n, s, m in zip(out_shape, spacing[::-1], values.shape, strict=True)]
         values = np.asarray(values)[np.ix_(*nearest)]
         spacing = (voxel, voxel, voxel)
-    labels = np.where(np.isin(values, chosen), values, 0).astype(np.uint16)
+    labels = label_sets.resolve(values, sets, chosen.tolist())
     if not labels.any():
         raise InputError("the chosen labels vanish at this voxel size; choose a smaller one", parameter="voxel")
     return labels, {"labels": [int(v) for v in chosen], "voxels": {int(v): counts[int(v)] for v in chosen},
@@ -579,19 +583,23 @@ def chosen_labels(counts, chosen, source="the label map", cropped=False):
     return chosen
 
 
-def label_counts(values):
+def label_counts(values, sets=None):
     """The voxels of each label of a label map, ``{label: count}`` for the labels above 0 that it holds; a few
-    slices at a time, so that a whole-body map is counted without an int64 copy of it.
+    slices at a time, so that a whole-body map is counted without an int64 copy of it.  With ``sets`` (a reader's
+    ``meta["label_sets"]``: structures that share voxels), each structure's own voxels.
 
     >>> label_counts(np.array([[[0, 3, 3], [7, 0, 3]]], np.uint8))
     {3: 3, 7: 1}
+    >>> label_counts(np.array([[[0, 3, 3], [7, 0, 3]]], np.uint8), {"7": [2, 3]})
+    {2: 1, 3: 4}
     """
     total = np.zeros(1, np.int64)
     for part in _blocks(values):
         counts = np.bincount(np.asarray(part, np.int64).ravel())
         total = np.pad(total, (0, max(0, len(counts) - len(total)))) if len(counts) > len(total) else total
         total[:len(counts)] += counts
-    return {int(v): int(total[v]) for v in np.flatnonzero(total) if v}
+    counts = {int(v): int(total[v]) for v in np.flatnonzero(total) if v}
+    return label_sets.structure_counts(values, sets, counts) if sets else counts
 
 
 def check_labels(values, source="the label map"):

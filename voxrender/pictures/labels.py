@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._render.geometry import ray_box_entry
+from .._shared.label_sets import millilitres
 
 # How far (voxels) a hit point computed from a float32 depth may lie from the cube it is on.
 _ON_CUBE = 1e-3
@@ -117,12 +118,11 @@ def label_list(table, voxels, spacing, pixels=None, ml=None):
     >>> label_list({2: ("liver", (40, 140, 40))}, {2: 1500}, (1.0, 1.0, 2.0), pixels={"2": 300})
     [{'label': 2, 'name': 'liver', 'colour': [40, 140, 40], 'voxels': 1500, 'ml': 3.0, 'pixels': 300}]
     """
-    voxel_ml = float(np.prod(spacing)) / 1000
     rows = []
     for label, (name, colour) in sorted(table.items()):
         count = int(voxels.get(label, 0))
         row = {"label": int(label), "name": name, "colour": [int(c) for c in colour], "voxels": count,
-               "ml": (ml or {}).get(str(label), round(count * voxel_ml, 3))}
+               "ml": (ml or {}).get(str(label), millilitres(count, spacing))}
         if pixels is not None:
             row["pixels"] = int(pixels.get(str(label), 0))
         rows.append(row)

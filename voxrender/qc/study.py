@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import io
+from .._shared import label_sets
 from ..errors import InputError
 from ..object import prep
 from ..object.pipeline import (
@@ -56,6 +57,9 @@ class Study:
         The pairs of labels the label map's reader found overlapping (a folder of masks), with their voxels.
     has_grey : bool
         Whether ``volume`` holds grey values (not when the input is the label map itself).
+    own_voxels : dict, optional
+        ``{label: voxels}`` of each chosen structure on its own, where structures share voxels (``labels`` then
+        shows the most specific one a voxel is in, :mod:`voxrender._shared.label_sets`).
     """
 
     volume: io.Volume
@@ -66,6 +70,7 @@ class Study:
     resampled: bool = True
     overlaps: list = field(default_factory=list)
     has_grey: bool = True
+    own_voxels: dict | None = None
 
     @property
     def step(self):
@@ -106,8 +111,10 @@ class Study:
 
     def label_voxels(self):
         """``{label: voxels}`` of the labels the study holds, on its grid (:func:`voxrender.object.prep.label_counts`),
-        counted once.
+        counted once; each structure's own, where structures share voxels.
         """
+        if self.own_voxels is not None:                     # structures that share voxels: each one's own
+            return {int(k): v for k, v in self.own_voxels.items()}
         if "_label_voxels" not in self.__dict__:
             self.__dict__["_label_voxels"] = {} if self.labels is None else prep.label_counts(self.labels)
         return self.__dict__["_label_voxels"]
@@ -127,7 +134,7 @@ class Study:
             "meta": {k: v for k, v in volume.meta.items() if k in _KEPT_META},
             "labels": self.labels is not None, "voxel": self.voxel, "resampled": self.resampled,
             "stored_table": self.stored_table, "overlaps": self.overlaps,
-            "has_grey": self.has_grey})
+            "has_grey": self.has_grey, "own_voxels": self.own_voxels})
 
 
 _KEPT_META = ("source", "format", "modality", "units", "series", "orientation", "reoriented", "padding",
@@ -148,7 +155,7 @@ def load_saved(stem, encoded=None):
     volume = io.Volume(np.load(grey, mmap_mode="r"), tuple(record["spacing"]), meta,
                        None if record["direction"] is None else np.asarray(record["direction"]))
     return Study(volume, np.load(labels, mmap_mode="r") if record["labels"] else None, record["stored_table"], encoded,
-                 record["voxel"], record["resampled"], record["overlaps"], record["has_grey"])
+                 record["voxel"], record["resampled"], record["overlaps"], record["has_grey"], record["own_voxels"])
 
 
 def cropped(volume, region):
@@ -210,7 +217,7 @@ def load_study(path, read=None, prepare=None, progress=None, encode=True):
     started = time.perf_counter()
     volume = read.read(path, progress)
     seconds = {"load": time.perf_counter() - started}
-    selection, labels, table, overlaps = prepare.labels, None, None, []
+    selection, labels, table, overlaps, own = prepare.labels, None, None, [], None
     if selection is not None:
         if selection.source is None:                       # the input is the label map
             labels_volume = volume
@@ -223,8 +230,8 @@ def load_study(path, read=None, prepare=None, progress=None, encode=True):
             labels_volume = replace(volume, values=on_image_grid(found, volume, name),
                                     meta={**found.meta, "source": str(name), **where})
             prepare = replace(prepare, labels=replace(selection, source=labels_volume))
-        labels = _chosen(prep.crop(labels_volume.values, prepare.crop), selection.chosen, labels_volume,
-                         prepare.crop is not None)
+        labels, own = _chosen(prep.crop(labels_volume.values, prepare.crop), selection.chosen, labels_volume,
+                              prepare.crop is not None)
         table = labels_volume.meta.get("label_table")
         overlaps = labels_volume.meta.get("overlaps") or []
     encoded = None
@@ -235,18 +242,18 @@ def load_study(path, read=None, prepare=None, progress=None, encode=True):
     part = cropped(volume, prepare.crop)
     voxel, grid = prep.cubic_grid(part.shape, part.spacing, prepare.voxel, prepare.resample)   # the object's grid
     return Study(part, labels, table, encoded, float(voxel), grid is not None, overlaps,
-                 has_grey=selection is None or selection.source is not None)
+                 has_grey=selection is None or selection.source is not None, own_voxels=own)
 
 
 def _chosen(values, chosen, source, cropped):
-    """The label map's ``chosen`` labels (all when ``None``), 0 elsewhere, as uint16; refused when it holds none of
-    them (:func:`voxrender.object.prep.chosen_labels`).
+    """The label map's ``chosen`` labels (all when ``None``), 0 elsewhere, as uint16, a shared voxel showing the most
+    specific structure it is in; and, where structures share voxels, each chosen one's own voxels (else ``None``).
+    Refused when it holds none of them (:func:`voxrender.object.prep.chosen_labels`).
     """
     name = source.meta.get("source", "the label map")
     prep.check_labels(values, name)
-    prep.chosen_labels(prep.label_counts(values), chosen, name, cropped)
-    labels = np.asarray(values).astype(np.uint16, copy=False)
-    if chosen is not None:
-        labels = np.where(np.isin(labels, chosen), labels, 0).astype(np.uint16)
-    return labels
-
+    sets = source.meta.get("label_sets") or {}
+    counts = prep.label_counts(values, sets)
+    chosen = prep.chosen_labels(counts, chosen, name, cropped).tolist()
+    own = {str(k): counts[k] for k in chosen} if sets else None
+    return label_sets.resolve(values, sets, chosen), own
