@@ -1,6 +1,7 @@
 """voxrender.io.detect_format: the readers' records, asked in the order of READERS."""
 
 import imageio.v3 as iio
+import nibabel
 import numpy as np
 import pytest
 from dicom_files import write_series
@@ -39,7 +40,7 @@ def test_an_unknown_folder_says_what_it_holds(tmp_path):
 
 
 def test_suffixes_first_then_sniffing_in_the_order_of_readers(tmp_path):
-    assert list(io.READERS)[:5] == ["seg", "zarr", "dicom", "images", "metaimage"] and io.FORMATS[0] == "auto"
+    assert list(io.READERS)[:5] == ["seg", "zarr", "dicom", "masks", "images"] and io.FORMATS[0] == "auto"
     np.save(tmp_path / "v.npy", np.zeros((2, 3, 4)))
     assert io.detect_format(tmp_path / "v.npy") == "npy"
     assert io.detect_format(tmp_path / "v.npy", raw=io.RawLayout(4, 3, np.dtype("u1"))) == "raw"
@@ -47,6 +48,15 @@ def test_suffixes_first_then_sniffing_in_the_order_of_readers(tmp_path):
     write_series(folder / "series", np.zeros((2, 4, 4)))       # DICOM files below, an image beside them
     iio.imwrite(folder / "preview.png", np.zeros((4, 4), np.uint8))
     assert io.detect_format(folder) == "dicom"
+    masks = tmp_path / "segmentations"                         # masks with a preview picture: masks, not slices
+    masks.mkdir()
+    for name in ("liver.nii.gz", "spleen.nii.gz"):
+        nibabel.save(nibabel.Nifti1Image(np.ones((2, 2, 2), np.uint8), np.eye(4)), masks / name)
+    iio.imwrite(masks / "preview_total.png", np.zeros((4, 4), np.uint8))
+    assert io.detect_format(masks) == "masks"
+    for k in range(3):                                         # more pictures than volume files: a stack of slices
+        iio.imwrite(masks / f"slice{k}.png", np.zeros((4, 4), np.uint8))
+    assert io.detect_format(masks) == "images"
 
 
 def test_every_reader_that_sniffs_answers_without_raising(tmp_path):

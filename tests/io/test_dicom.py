@@ -2,8 +2,10 @@
 
 import subprocess
 import sys
+import warnings
 
 import numpy as np
+import pydicom
 import pytest
 from conftest import data_path
 from dicom_files import write_enhanced, write_series
@@ -293,3 +295,38 @@ def test_a_study_folder_with_a_structure_set_and_a_report_reads_its_slices(tmp_p
     rtstruct.rename(tmp_path / "alone" / "rs.dcm")
     with pytest.raises(InputError, match="holds no image slices, only RTSTRUCT rs.dcm; a segmentation is shown on"):
         io.read_volume(tmp_path / "alone")
+
+
+def _moved(path, z):
+    """The slice file at ``path`` moved to ``z`` mm along the normal (rewritten by pydicom)."""
+    ds = pydicom.dcmread(path)
+    ds.ImagePositionPatient = [0.0, 0.0, float(z)]
+    ds.save_as(path)
+
+
+def test_a_stray_slice_far_from_the_rest_is_set_aside_with_one_warning_that_names_it(tmp_path):
+    """pydicom's CT2: slices at z -99.5, 103.0, 104.3 and 105.5 mm; stacked at the median step, three of the four
+    were drawn 200 mm from where they are."""
+    values = np.arange(5 * 4 * 3, dtype=np.int16).reshape(5, 4, 3) * 10
+    paths = write_series(tmp_path / "ct", values, names=[f"s{k}.dcm" for k in range(5)])
+    _moved(paths[0], -300.0)                                 # the first slice, 200 mm below the others
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        volume = io.read_volume(tmp_path / "ct")
+    said = [str(w.message) for w in caught]
+    assert len(said) == 1 and "s0.dcm" in said[0] and "slices 2 to 5 of 5" in said[0], said
+    assert np.array_equal(volume.values, values[1:] - 1024)
+    assert volume.spacing[2] == pytest.approx(2.0) and volume.meta["origin"][2] == pytest.approx(-98.0)
+
+
+def test_a_series_of_two_regular_runs_reads_the_longer_and_says_so(tmp_path):
+    values = np.arange(6 * 4 * 3, dtype=np.int16).reshape(6, 4, 3)
+    paths = write_series(tmp_path / "ct", values, names=[f"s{k}.dcm" for k in range(6)])
+    for k, path in enumerate(paths[4:]):
+        _moved(path, 50.0 + 2.0 * k)                         # two slices after a gap
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        volume = io.read_volume(tmp_path / "ct")
+    assert len(caught) == 1 and "slices 1 to 4 of 6" in str(caught[0].message) and "s4.dcm, s5.dcm" in \
+        str(caught[0].message)
+    assert np.array_equal(volume.values, values[:4] - 1024)

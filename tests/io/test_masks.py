@@ -294,3 +294,33 @@ def test_vhf_head_tissue_masks_render_as_their_label_map(vhf_tissues):
                                   clip=clip)
     assert np.array_equal(from_masks, from_map)
     assert len(np.unique(from_masks.reshape(-1, 3), axis=0)) > 20      # four tissues, shaded
+
+
+def test_a_pipelines_folder_is_read_as_written_and_what_is_not_a_mask_is_named_once(tmp_path):
+    """TotalSegmentator --statistics --preview writes preview_total.png and statistics.json beside the masks."""
+    import imageio.v3 as iio
+
+    folder = split(tmp_path / "segmentations", phantom(), ["aorta", "liver", "spleen"])
+    iio.imwrite(folder / "preview_total.png", np.zeros((8, 8, 3), np.uint8))
+    (folder / "statistics.json").write_text('{"liver": {"volume": 1.0}}')
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        volume = io.read_volume(folder)
+    assert volume.meta["format"] == "masks" and len(volume.meta["label_table"]) == 3
+    said = [str(w.message) for w in caught]
+    assert len(said) == 1 and "preview_total.png, statistics.json" in said[0] and "not masks" in said[0]
+    (folder / "mesh.vtk").write_bytes(b"# vtk DataFile")                  # a stray no pipeline writes beside masks
+    with pytest.raises(InputError, match=r"holds files other than NIfTI or NRRD masks \(mesh.vtk\)"):
+        io.read_volume(folder, format="masks")
+
+
+def test_a_folder_of_one_volume_file_is_that_volume_and_of_one_mask_a_structure(tmp_path):
+    ct = tmp_path / "ct"
+    ct.mkdir()
+    grey = np.linspace(-1000, 400, 2 * 4 * 7, dtype=np.float32).reshape(2, 4, 7)
+    save_nifti(ct / "ct.nii.gz", grey)
+    volume = io.read_volume(ct)
+    assert np.array_equal(volume.values, io.read_volume(ct / "ct.nii.gz").values)
+    assert "ct.nii.gz" in volume.meta["read_as"]
+    one = split(tmp_path / "one", phantom(), ["aorta"])
+    assert io.read_volume(one).meta["label_table"] == {"1": {"name": "aorta", "colour": None}}

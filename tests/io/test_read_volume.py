@@ -28,7 +28,7 @@ def test_a_format_refuses_options_it_does_not_take(tmp_path):
 
 
 def test_an_unknown_format(tmp_path):
-    with pytest.raises(InputError, match="unknown format 'png'; choose one of auto, seg, zarr, dicom, images") as info:
+    with pytest.raises(InputError, match="unknown format 'png'; choose one of auto, seg, zarr, dicom, masks") as info:
         io.read_volume(tmp_path, format="png")
     assert info.value.parameter == "format"
 

@@ -71,12 +71,12 @@ READERS = {
     "seg": seg.READER,
     "zarr": zarr.READER,
     "dicom": dicom.READER,
+    "masks": masks.READER,            # before images: a folder of masks may hold a preview picture
     "images": images.READER,
     "metaimage": metaimage.READER,
     "raw": raw.READER,
     "npy": npy.READER,
     "tiff": tiff.READER,
-    "masks": masks.READER,
     "nifti": nifti.READER,
     "nrrd": nrrd.READER,
 }

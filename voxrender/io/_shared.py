@@ -22,7 +22,9 @@ from .._shared.text import first_line, in_words
 from ..errors import InputError
 
 # Files that sit beside slices or volume files without being either.
-NOTE_SUFFIXES = {".txt", ".md", ".json", ".csv", ".xml", ".ini", ".py"}
+NOTE_SUFFIXES = {".txt", ".md", ".json", ".csv", ".tsv", ".xml", ".ini", ".py"}
+# Pictures a pipeline leaves beside its volume files (TotalSegmentator's preview_total.png).
+PICTURE_SUFFIXES = {".png", ".jpg", ".jpeg"}
 
 
 @dataclass
@@ -161,12 +163,33 @@ def some_names(files, count=3):
 
 
 def volume_files(folder, suffixes):
-    """The files of ``folder`` whose names end in ``suffixes`` when, besides notes, they are all it holds (a folder of
-    volume files, such as a segmentation's one file per organ); otherwise an empty list.
+    """The files of ``folder`` whose names end in ``suffixes`` when, besides notes and fewer pictures than them
+    (:func:`files_beside`), they are all it holds: a folder of volume files, such as a segmentation's one file per
+    organ with TotalSegmentator's ``preview_total.png`` and ``statistics.json``; otherwise an empty list.
+
+    >>> import tempfile, pathlib
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> for name in ("liver.nii.gz", "spleen.nii.gz", "preview_total.png", "statistics.json"):
+    ...     _ = (folder / name).write_bytes(b"")
+    >>> [f.name for f in volume_files(folder, (".nii.gz",))], [f.name for f in files_beside(folder, (".nii.gz",))]
+    (['liver.nii.gz', 'spleen.nii.gz'], ['preview_total.png', 'statistics.json'])
     """
     files = listed(folder)
     found = [f for f in files if f.name.lower().endswith(suffixes)]
-    return found if all(f in found or f.suffix.lower() in NOTE_SUFFIXES for f in files) else []
+    beside = files_beside(folder, suffixes)
+    return found if len(found) + len(beside) == len(files) else []
+
+
+def files_beside(folder, suffixes):
+    """The files beside a folder's volume files (named with ``suffixes``) that a pipeline writes with them and a
+    reader passes over: notes (JSON, CSV, text) and pictures (a preview PNG or JPEG), when fewer pictures than volume
+    files (a folder of many pictures is a stack of slices).
+    """
+    files = listed(folder)
+    volumes = sum(f.name.lower().endswith(suffixes) for f in files)
+    pictures = [f for f in files if f.suffix.lower() in PICTURE_SUFFIXES and not f.name.lower().endswith(suffixes)]
+    notes = [f for f in files if f.suffix.lower() in NOTE_SUFFIXES]
+    return sorted(notes + (pictures if len(pictures) < volumes else []), key=lambda p: natural_key(p.name))
 
 
 def folder_of_volumes(folder, kind, suffixes):

@@ -772,6 +772,9 @@ def _beside(aside):
     return {"segmentations": found} if found else {}
 
 
+RUN_TOLERANCE = 0.1      # steps within 10 % of the median one make one regular run of slices
+
+
 def _sort_dicom(items):
     """Order slices along the slice normal; return (items, slice spacing, how they were sorted, direction).
 
@@ -811,11 +814,46 @@ def _sort_dicom(items):
     fallback = float(getattr(first, "SpacingBetweenSlices", 0) or getattr(first, "SliceThickness", 0) or 1.0)
     if how != "ImagePositionPatient" or not len(steps):
         return items, abs(fallback), how, direction
+    first, last = _regular_run(positions)
+    if (first, last) != (0, len(items)):
+        warnings.warn(_run_taken(items, positions, first, last), stacklevel=2)
+        items, steps = items[first:last], steps[first:last - 1]
+        if len(steps) == 0:
+            return items, abs(fallback), how, direction
     spacing = float(np.median(steps))
     if np.ptp(steps) > max(0.01, 0.01 * spacing):
         warnings.warn(f"slice spacing varies from {steps.min():g} to {steps.max():g} mm; using the median "
                       f"{spacing:g} mm", stacklevel=2)
     return items, spacing, how, direction
+
+
+def _regular_run(positions, tolerance=RUN_TOLERANCE):
+    """The slices ``first .. last - 1`` (sorted by position) of the longest run whose steps all lie within
+    ``tolerance`` of the series' median step, the first of the longest when several are as long: where a step
+    differs more (a slice 200 mm from the others, a gap, a second acquisition), the series is split.
+
+    >>> _regular_run(np.array([-99.5, 103.0, 104.25, 105.5]))
+    (1, 4)
+    >>> _regular_run(np.array([0.0, 2.0, 4.0, 6.1]))
+    (0, 4)
+    """
+    steps = np.diff(positions)
+    typical = np.median(steps)
+    breaks = np.flatnonzero(np.abs(steps - typical) > max(0.01, tolerance * abs(typical))) + 1
+    starts, ends = np.r_[0, breaks], np.r_[breaks, len(positions)]
+    k = int(np.argmax(ends - starts))
+    return int(starts[k]), int(ends[k])
+
+
+def _run_taken(items, positions, first, last):
+    """The warning that says which regular run of an uneven series is read, and what is set aside."""
+    aside = [f.name for f, _ in items[:first] + items[last:]]
+    shown = ", ".join(aside[:3]) + (" ..." if len(aside) > 3 else "")
+    steps = np.diff(positions)
+    return (f"the series' slice steps are uneven ({steps.min():g} to {steps.max():g} mm), so its slices are not one "
+            f"stack: reading the longest regular run, slices {first + 1} to {last} of {len(items)} (at "
+            f"{positions[first]:g} to {positions[last - 1]:g} mm along the slice normal), and setting aside "
+            f"{len(aside)} slice{'s' * (len(aside) > 1)} ({shown}); give a folder of one run to read another")
 
 
 def holds_dicom(path):

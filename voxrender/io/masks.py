@@ -22,13 +22,14 @@ A file that holds more than 0 and one other value (a 0/1, 0/255 or boolean mask)
 from __future__ import annotations
 
 import collections
+import warnings
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
 from .._shared import label_sets
 from ..errors import InputError
-from ._shared import Reader, Volume, check_fits, natural_key, some_names, volume_files
+from ._shared import Reader, Volume, check_fits, files_beside, listed, natural_key, some_names, volume_files
 
 SUFFIXES = (".nii", ".nii.gz", ".nrrd", ".nhdr")
 NAME_ENDINGS = (".nii.gz", ".seg.nrrd", ".nii", ".nrrd", ".nhdr")       # longest first: what a name drops
@@ -97,8 +98,19 @@ def read_masks(path, progress):
                          parameter="format")
     files = volume_files(path, SUFFIXES)
     if not files:
-        raise InputError(f"{path} holds files other than NIfTI or NRRD masks ({some_names(sorted(path.iterdir()))});"
+        strays = [f for f in listed(path) if not f.name.lower().endswith(SUFFIXES)
+                  and f not in files_beside(path, SUFFIXES)]
+        raise InputError(f"{path} holds files other than NIfTI or NRRD masks ({some_names(strays)});"
                          " give a folder of masks, one file each", parameter="format")
+    beside = files_beside(path, SUFFIXES)
+    if beside:
+        warnings.warn(f"{path}: {len(beside)} file{'s' * (len(beside) > 1)} beside the masks "
+                      f"{'are' if len(beside) > 1 else 'is'} not masks and {'are' if len(beside) > 1 else 'is'} "
+                      f"passed over ({some_names(beside, 5)})", stacklevel=2)
+    if len(files) == 1:
+        alone = _one_volume(files[0])
+        if alone is not None:
+            return alone
     files.sort(key=lambda f: (natural_key(mask_name(f)), f.name))
     names = [mask_name(f) for f in files]
     twice = [f.name for f, name in zip(files, names, strict=True) if names.count(name) > 1]
@@ -138,6 +150,21 @@ def read_masks(path, progress):
     if "reoriented" in first.meta:
         meta["masks_reoriented"] = f"{files[0].name}: {first.meta['reoriented']}"
     return Volume(codes, first.spacing, meta, first.direction)
+
+
+def _one_volume(file):
+    """The volume a folder of one volume file holds, when it is not a mask (a CT, a label map); ``None`` for a mask,
+    which is a folder of one structure.
+    """
+    from . import read_volume  # here, not above: voxrender.io imports this module
+
+    volume = read_volume(file)
+    try:
+        _where(volume.values, file)
+    except InputError:
+        volume.meta["read_as"] = f"the one volume file of its folder, {file.name}"
+        return volume
+    return None
 
 
 def _read_mask(file):
