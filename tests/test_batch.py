@@ -1,6 +1,7 @@
 import csv
 import json
 import re
+import shutil
 from pathlib import Path
 
 import imageio.v3 as iio
@@ -313,3 +314,26 @@ def test_a_rerun_keeps_each_pictures_labels_in_the_summary_and_the_page(tmp_path
     tables = [re.findall(r'<table class="labels">.*?</table>', page) for page in pages]
     assert tables[0] == tables[1] and len(tables[1]) == 1 and ">27<" in tables[1][0]      # the map's, kept
     assert '<span class="flag' not in pages[1]              # the CT alone lacks no label: it has none to compare
+
+
+def test_summary_cells_that_begin_like_a_formula_are_quoted_and_a_rerun_reads_them_back(tmp_path, stacks):
+    """OWASP's CSV injection: a spreadsheet runs a cell that begins with =, +, - or @ as a formula."""
+    shutil.copy(stacks / "box.npy", stacks / "=1+2.npy")
+    shutil.copy(stacks / "box.npy", stacks / "@SUM(A1).npy")
+    work = items([stacks / "=1+2.npy", stacks / "@SUM(A1).npy"])
+    for _ in range(2):
+        batch.run_batch(work, tmp_path / "out", jobs=1)
+        rows = read_summary(tmp_path / "out" / "summary.csv")
+        cells = [cell for row in rows for cell in row.values()]
+        formulas = [cell for cell in cells if cell[:1] in ("=", "+", "@") or cell[:1] == "-" and not _number(cell)]
+        assert not formulas, formulas
+        assert {row["name"] for row in rows} == {"'=1+2", "'@SUM(A1)"}
+    assert {row["status"] for row in rows} == {"done earlier"}              # the quoted outputs read back
+
+
+def _number(text):
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False

@@ -42,3 +42,17 @@ def test_an_object_array_is_bad_input(tmp_path):
     np.save(tmp_path / "objects.npy", np.array([[[None]]], dtype=object), allow_pickle=True)
     with pytest.raises(InputError, match="objects.npy"):
         io.read_volume(tmp_path / "objects.npy")
+
+
+@pytest.mark.parametrize("version", [(1, 0), (2, 0), (3, 0)])
+def test_a_damaged_shape_in_any_header_version_is_bad_input(tmp_path, version):
+    """Was "internal error: OverflowError: memory mapped length must be positive" (exit 1): numpy writes version 3.0
+    headers, which were not checked before the mapping."""
+    with open(tmp_path / "v.npy", "wb") as f:
+        np.lib.format.write_array(f, np.zeros((2, 3, 4), np.int16), version=version)
+    data = (tmp_path / "v.npy").read_bytes()
+    end = data.index(b"\n")
+    damaged = data[:end].replace(b"(2, 3, 4)", b"(4294967296, 4294967296, 4)").replace(b"                  ", b"", 1)
+    (tmp_path / "v.npy").write_bytes(damaged + data[end:])
+    with pytest.raises(InputError, match="its header promises"):
+        io.read_volume(tmp_path / "v.npy")

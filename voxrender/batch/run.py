@@ -791,7 +791,8 @@ def _earlier_rows(out_dir):
     """
     try:
         with open(Path(out_dir) / "summary.csv", newline="") as f:
-            return {row["output"]: row for row in csv.DictReader(f) if row.get("output")}
+            rows = [{k: from_spreadsheet_cell(v) for k, v in row.items()} for row in csv.DictReader(f)]
+            return {row["output"]: row for row in rows if row.get("output")}
     except (OSError, csv.Error, UnicodeDecodeError):
         return {}
 
@@ -924,4 +925,29 @@ def _write_summary(path, rows):
         writer = csv.DictWriter(f, SUMMARY_COLUMNS, extrasaction="ignore")
         writer.writeheader()
         for row in rows:
-            writer.writerow({k: (f"{v:.4f}" if isinstance(v, float) else v) for k, v in row.items()})
+            writer.writerow({k: spreadsheet_cell(f"{v:.4f}" if isinstance(v, float) else v) for k, v in row.items()})
+
+
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")     # what a spreadsheet runs as a formula (OWASP's CSV injection)
+
+
+def spreadsheet_cell(value):
+    """``value`` as a CSV cell a spreadsheet shows and does not run: text that begins like a formula is prefixed with
+    a quote, as OWASP advises; numbers, negative ones too, are left as they are.  :func:`from_spreadsheet_cell`
+    undoes it.
+
+    >>> spreadsheet_cell("=1+2"), spreadsheet_cell("@SUM(A1)"), spreadsheet_cell("-0.5000"), spreadsheet_cell("liver")
+    ("'=1+2", "'@SUM(A1)", '-0.5000', 'liver')
+    """
+    if not isinstance(value, str) or not value.startswith(FORMULA_STARTS):
+        return value
+    try:
+        float(value)
+        return value
+    except ValueError:
+        return "'" + value
+
+
+def from_spreadsheet_cell(value):
+    """A cell :func:`spreadsheet_cell` wrote, as it was."""
+    return value[1:] if isinstance(value, str) and value[:1] == "'" and value[1:2] in FORMULA_STARTS else value

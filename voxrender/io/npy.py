@@ -14,7 +14,8 @@ def read_npy(path, progress):
     """Read a 3-D numeric ``.npy`` array (booleans become 0 and 1 in :func:`~voxrender.io.read_volume`)."""
     from tokenize import TokenError
 
-    damaged = (ValueError, OSError, EOFError, TokenError)        # a garbled header can fail numpy's tokenizer
+    # a garbled header can fail numpy's tokenizer, and a shape numpy's mapping cannot take ends in OverflowError
+    damaged = (ValueError, OSError, EOFError, TokenError, OverflowError)
     try:
         shape, dtype, offset = _header(path)
         if dtype is not None:                                  # mapped, not read: only the file must hold them
@@ -57,7 +58,9 @@ def _header(path):
     """
     from numpy.lib import format
 
-    readers = {(1, 0): format.read_array_header_1_0, (2, 0): format.read_array_header_2_0}
+    # version 3.0 is 2.0 with a UTF-8 header: an ASCII one (every dtype but one with non-ASCII field names) reads alike
+    readers = {(1, 0): format.read_array_header_1_0, (2, 0): format.read_array_header_2_0,
+               (3, 0): format.read_array_header_2_0}
     with open(path, "rb") as f:
         version = format.read_magic(f)
         if version not in readers:
