@@ -28,6 +28,7 @@ from voxrender._shared import label_sets
 from voxrender.errors import InputError
 from voxrender.io._dicomfile import is_rtstruct
 from voxrender.io.rtstruct import check_reference, fill_even_odd, read_rtstruct
+from voxrender.object.pipeline import read_labels
 
 SPACING = (1.0, 1.0, 2.0)                   # x, y, z in mm
 SHAPE = (20, 40, 40)                        # z, y, x
@@ -279,6 +280,32 @@ def test_another_frame_of_reference_is_refused_when_no_series_says(tmp_path):
     ct.meta["frame_of_reference"] = "1.2.6"
     with pytest.raises(InputError, match="frame of reference 1.2.5.* 1.2.6"):
         check_reference(labels.meta, ct)
+
+
+def test_the_series_drawn_on_in_another_frame_of_reference_is_drawn_with_one_warning(tmp_path):
+    """rt-utils' rt.dcm: it references the CT's series and slice, under a FrameOfReferenceUID of its own."""
+    ct, paths = write_ct(tmp_path / "ct")
+    ct.meta["frame_of_reference"] = "1.2.6"
+    references = {**references_of(paths), "frame_of_reference": "1.2.5"}
+    labels = read_rtstruct(write_rtstruct(tmp_path / "rs.dcm", [Roi("GTV", [square((20, 20), 8, -90)])],
+                                          **references), ct)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_reference(labels.meta, ct)
+    assert len(caught) == 1 and "another frame of reference (1.2.5, the image's 1.2.6)" in str(caught[0].message)
+
+
+def test_an_rtstruct_saved_without_preamble_or_file_meta_is_recognised_and_drawn(tmp_path):
+    """rt-utils' dummy_rt.dcm once saved so; pydicom reads such a file with force=True."""
+    ct, paths = write_ct(tmp_path / "ct")
+    rois = [Roi("GTV", [square((20, 20), 8, -90)])]
+    ds = rtstruct_dataset(rois, **references_of(paths))
+    ds.preamble, ds.file_meta = None, pydicom.dataset.FileMetaDataset()
+    ds.save_as(tmp_path / "bare.dcm", enforce_file_format=False, implicit_vr=True, little_endian=True)
+    assert (tmp_path / "bare.dcm").read_bytes()[128:132] != b"DICM" and is_rtstruct(tmp_path / "bare.dcm")
+    labels = read_labels(tmp_path / "bare.dcm", ct)
+    assert np.array_equal(labels.values, read_rtstruct(write_rtstruct(tmp_path / "rs.dcm", rois,
+                                                                      **references_of(paths)), ct).values)
 
 
 # ---------------------------------------------------------------- what is not an RTSTRUCT, damaged ones

@@ -141,8 +141,9 @@ def is_rtstruct(path):
     import pydicom
 
     try:
-        with BoundedFile(path) as stream:
-            ds = pydicom.dcmread(stream, stop_before_pixels=True, specific_tags=["SOPClassUID", "Modality"])
+        with BoundedFile(path) as stream:         # force: an RTSTRUCT saved without preamble and file meta header
+            ds = pydicom.dcmread(stream, stop_before_pixels=True, specific_tags=["SOPClassUID", "Modality"],
+                                 force=True)
         return str(ds.get("SOPClassUID", "")) == RTSTRUCT_CLASS or str(ds.get("Modality", "")) == "RTSTRUCT"
     except damaged_file_errors():              # not DICOM, or too damaged to tell: not an RTSTRUCT
         return False

@@ -176,12 +176,16 @@ series 1.2.3; give the CT series it was drawn on
     drawn_on = [s for s in rtstruct_meta.get("referenced_series_all") or [rtstruct_meta.get("referenced_series")]
                 if s]
     series = image.meta.get("series") or ""
+    ours, theirs = rtstruct_meta.get("frame_of_reference") or "", image.meta.get("frame_of_reference") or ""
     if drawn_on and series:
         if series not in drawn_on:
             raise InputError(f"RTSTRUCT {source} was drawn on series {' or '.join(drawn_on)}, but {image_name} is "
                              f"series {series}; give the CT series it was drawn on", parameter="labels_from")
+        if ours and theirs and ours != theirs:        # rt-utils writes a new UID: the series says which CT it is
+            warnings.warn(f"RTSTRUCT {source} references {image_name}'s series but another frame of reference "
+                          f"({ours}, the image's {theirs}); its contours are drawn in the image's patient "
+                          "coordinates, as the series it references says", stacklevel=2)
         return
-    ours, theirs = rtstruct_meta.get("frame_of_reference") or "", image.meta.get("frame_of_reference") or ""
     if ours and theirs and ours != theirs:
         raise InputError(f"RTSTRUCT {source} is in frame of reference {ours}, but {image_name} is in {theirs}: its "
                          "contours are not in this image's patient coordinates; give the CT it was drawn on",
