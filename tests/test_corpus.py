@@ -16,6 +16,7 @@ from conftest import ROOT
 from test_cli import run
 
 CORPUS = ROOT.parent / "shared" / "corpora" / "real-segs.tar.gz"
+PYNRRD_DATA = ROOT.parent / "shared" / "corpora" / "pynrrd-tests-data.tar.gz"
 TOLERANCE = 0.02
 # Cases still wrong, each with its reason; strict, so a case fixed here fails until it is taken off the list.
 KNOWN_WRONG = {
@@ -25,16 +26,19 @@ KNOWN_WRONG = {
 }
 
 
-def _corpus_folder(tmp_path_factory):
-    if not CORPUS.exists():
-        message = f"the corpus {CORPUS} is absent (it lives in ../shared/corpora beside the checkout)"
+def _unpacked(tarball, folder):
+    if not tarball.exists():
+        message = f"the corpus {tarball} is absent (it lives in ../shared/corpora beside the checkout)"
         if os.environ.get("CI") == "true":
             pytest.fail(f"{message}; CI=true needs it")
         pytest.skip(message)
-    folder = tmp_path_factory.mktemp("corpus")
-    with tarfile.open(CORPUS) as archive:
+    with tarfile.open(tarball) as archive:
         archive.extractall(folder, filter="data")
-    return folder / "real-segs"
+    return folder
+
+
+def _corpus_folder(tmp_path_factory):
+    return _unpacked(CORPUS, tmp_path_factory.mktemp("corpus")) / "real-segs"
 
 
 @pytest.fixture(scope="module")
@@ -97,3 +101,26 @@ def test_every_corpus_case_renders_or_is_refused_as_its_source_says(case, corpus
         assert found[name]["ml"] == pytest.approx(ml, rel=TOLERANCE), f"{name}: {found[name]['ml']} mL, not {ml}"
     for name in (_key(n) for n in case["mustnot"].split("|") if n != "-"):
         assert name not in found or not found[name]["voxels"], f"{name} has content: {found[name]}"
+
+
+@pytest.mark.parametrize(("labels", "said"), [
+    ("highdicom/seg_image_sm_dots_tiled_full.dcm", "tiled segmentation of a slide (TILED_FULL"),    # not "damaged"
+])
+def test_a_refusal_gives_the_right_reason(corpus, tmp_path, labels, said):
+    result = run("render", corpus / labels, "--labels", "-o", tmp_path / "x.png")
+    lines = result.stderr.strip().splitlines()
+    assert result.exit_code == 2 and len(lines) == 1 and said in lines[0] and "damaged" not in lines[0], result.stderr
+
+
+def test_a_gzip_nrrd_with_byte_skip_minus_one_reads_as_pynrrd_reads_it(tmp_path):
+    """pynrrd's own test file: byte skip -1 (the voxels end the inflated stream) with gzip data was refused."""
+    import nrrd
+    import numpy as np
+
+    from voxrender import io
+
+    data = _unpacked(PYNRRD_DATA, tmp_path) / "pynrrd-tests-data" / "nrrd" / "tests" / "data"
+    path = data / "BallBinary30x30x30_gz_byteskip_minus_one.nrrd"
+    expected, _ = nrrd.read(str(path), index_order="C")
+    values = io.read_volume(path, reorient=False).values
+    assert values.shape == expected.shape and np.array_equal(values, expected) and values.any()

@@ -26,6 +26,7 @@ from ._shared import (
     check_frame,
     check_spacing,
     folder_of_volumes,
+    inflated_size,
     open_voxels,
     promised_bytes,
     read_voxels,
@@ -239,9 +240,6 @@ def _stored(path, f, header):
                          "damaged")
     if encoding is None:                                    # pynrrd skips lines and bytes itself
         return _Stored(header, path, f.tell(), tuple(sizes[::-1]), dtype, "text")
-    if byte_skip == -1 and encoding != "raw":
-        raise InputError(f"{path}: byte skip -1 (the voxels at the end) with {encoding} data is not supported; "
-                         "give the data uncompressed")
     source = path.parent / data_file if data_file is not None else path
     with open(source, "rb") if data_file is not None else contextlib.nullcontext(f) as data:
         for _ in range(line_skip):
@@ -251,7 +249,24 @@ def _stored(path, f, header):
             held = os.fstat(data.fileno()).st_size - offset
             offset += max(held - promised_bytes(sizes, dtype), 0) if byte_skip == -1 else byte_skip
             return _Stored(header, source, offset, tuple(sizes[::-1]), dtype, None)
+        if byte_skip == -1:                                  # the voxels end the inflated stream, as pynrrd reads it
+            byte_skip = _skip_to_the_end(data, encoding, promised_bytes(sizes, dtype), path)
     return _Stored(header, source, offset, tuple(sizes[::-1]), dtype, encoding, skip=byte_skip)
+
+
+def _skip_to_the_end(data, encoding, promised, path):
+    """The inflated bytes before the voxels of compressed data whose byte skip is -1 (the voxels at its end), counted
+    from ``data``'s place (put back) without keeping them, no further than the promised voxels and as many bytes
+    again as the file holds: more would be a bomb, not a header before the voxels.
+    """
+    start = data.tell()
+    limit = promised + os.fstat(data.fileno()).st_size
+    inflated = inflated_size(data, encoding, limit)
+    data.seek(start)
+    if inflated > limit:
+        raise InputError(f"{path}: its {encoding} data inflates beyond the {promised} bytes of voxels its header "
+                         "promises and the file's own size (byte skip -1); the file is damaged")
+    return max(inflated - promised, 0)
 
 
 def _kind(header, axis):

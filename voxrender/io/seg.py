@@ -182,6 +182,9 @@ def _check_frames(dataset, path):
                          "BitsAllocated, or they are not numbers") from None
     if frames < 1 or not pixel_bytes:
         raise InputError(f"DICOM SEG {path} holds no frames: it segments nothing; give a SEG with segment frames")
+    if per_frame is None and str(dataset.get("DimensionOrganizationType", "")) == "TILED_FULL":
+        raise InputError(f"DICOM SEG {path} is a tiled segmentation of a slide (TILED_FULL, slide microscopy), not "
+                         "of a patient volume; voxrender reads SEGs of CT, MR or PET series")
     if per_frame is None:
         raise InputError(f"DICOM SEG {path} has no PerFrameFunctionalGroupsSequence, so nothing places its "
                          f"{frames} frames; the file is damaged")
