@@ -102,10 +102,10 @@ class Painter:
 
 def code_counts(codes):
     """``{code: voxels}`` of the nonzero codes of a label map, a few slices at a time (no int64 copy of it)."""
-    codes = np.asarray(codes)
+    codes = np.atleast_1d(codes)
     total = np.zeros(1, np.int64)
-    step = max(1, (1 << 22) // max(1, codes[0].size if codes.ndim > 1 else 1))
-    for start in range(0, max(1, len(codes)), step):
+    step = max(1, (1 << 24) // max(1, codes[0].size))
+    for start in range(0, len(codes), step):
         counts = np.bincount(np.asarray(codes[start:start + step], np.int64).ravel())
         if len(counts) > len(total):
             total = np.pad(total, (0, len(counts) - len(total)))

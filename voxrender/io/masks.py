@@ -96,13 +96,11 @@ def read_masks(path, progress):
     if not path.is_dir():
         raise InputError(f"{path} is a file; the masks format reads a folder of masks, one NIfTI or NRRD file each",
                          parameter="format")
-    files = volume_files(path, SUFFIXES)
+    files, beside = volume_files(path, SUFFIXES), files_beside(path, SUFFIXES)
     if not files:
-        strays = [f for f in listed(path) if not f.name.lower().endswith(SUFFIXES)
-                  and f not in files_beside(path, SUFFIXES)]
+        strays = [f for f in listed(path) if not f.name.lower().endswith(SUFFIXES) and f not in beside]
         raise InputError(f"{path} holds files other than NIfTI or NRRD masks ({some_names(strays)});"
                          " give a folder of masks, one file each", parameter="format")
-    beside = files_beside(path, SUFFIXES)
     if beside:
         warnings.warn(f"{path}: {len(beside)} file{'s' * (len(beside) > 1)} beside the masks "
                       f"{'are' if len(beside) > 1 else 'is'} not masks and {'are' if len(beside) > 1 else 'is'} "

@@ -593,12 +593,7 @@ def label_counts(values, sets=None):
     >>> label_counts(np.array([[[0, 3, 3], [7, 0, 3]]], np.uint8), {"7": [2, 3]})
     {2: 1, 3: 4}
     """
-    total = np.zeros(1, np.int64)
-    for part in _blocks(values):
-        counts = np.bincount(np.asarray(part, np.int64).ravel())
-        total = np.pad(total, (0, max(0, len(counts) - len(total)))) if len(counts) > len(total) else total
-        total[:len(counts)] += counts
-    counts = {int(v): int(total[v]) for v in np.flatnonzero(total) if v}
+    counts = label_sets.code_counts(values)
     return label_sets.structure_counts(values, sets, counts) if sets else counts
 
 
