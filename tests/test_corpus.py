@@ -124,3 +124,26 @@ def test_a_gzip_nrrd_with_byte_skip_minus_one_reads_as_pynrrd_reads_it(tmp_path)
     expected, _ = nrrd.read(str(path), index_order="C")
     values = io.read_volume(path, reorient=False).values
     assert values.shape == expected.shape and np.array_equal(values, expected) and values.any()
+
+
+@pytest.mark.parametrize("name", ["Bladder_Union_PTV", "Expanded_5_5_5_Rectum"])
+def test_an_early_slicer_segmentation_lies_in_the_pelvis_of_its_ct(corpus, name):
+    """SlicerRT's .seg.nrrd files of 2016 (4-D, no 'space') were refused as 'needs 4 vectors of 3 numbers'. Read as
+    3D Slicer reads them (RAS, from the corner of Segmentation_Extent), the bladder and rectum lie in the middle of
+    the patient left to right, inside the extent of the CT they were drawn on, the rectum behind the bladder."""
+    import numpy as np
+
+    from voxrender import io
+
+    def bounds(volume):
+        corners = np.array([[0, 0, 0], np.array(volume.values.shape[::-1]) - 1])
+        return np.sort(volume.meta["origin"] + corners * volume.spacing @ volume.direction.T, axis=0)
+
+    ct = io.read_volume(corpus / "slicerrt" / "TinyPatientCT.nrrd")
+    ct = bounds(ct) + np.outer([-1, 1], ct.spacing) / 2                 # the CT's voxels' outer faces
+    segmentation = io.read_volume(corpus / "slicerrt" / f"EclipseProstate_{name}.seg.nrrd")
+    low, high = bounds(segmentation)
+    assert np.all(low >= ct[0]) and np.all(high <= ct[1])
+    assert abs((low[0] + high[0]) / 2) < 40                             # mm from the midline, left to right
+    assert segmentation.meta["label_table"]["1"]["name"] == name
+    assert (low[1] + high[1]) / 2 > (-20 if "Rectum" in name else -60)   # posterior is +y in LPS

@@ -221,3 +221,46 @@ def test_nrrd_4d_with_its_list_axis_first_takes_a_frame(tmp_path):
                                                                              [0, 0, 2]]}, index_order="C")
     volume = io.read_volume(tmp_path / "four.nrrd", frame=1)
     assert np.array_equal(volume.values, data[..., 1]) and volume.spacing == (1.0, 1.0, 2.0)
+
+
+def _early_segmentation(path, segments, extents, common="1 4 2 4 3 4"):
+    """An early 3D Slicer .seg.nrrd (before 4.11), written by pynrrd as Slicer wrote them: 4-D in an unnamed
+    space of 4 dimensions, one binary volume a segment along the slowest axis, cropped to Segmentation_Extent."""
+    import nrrd
+
+    header = {"space dimension": 4, "kinds": ["domain"] * 4, "space origin": [250, 250, -120, 0],
+              "space directions": [[-1, 0, 0, 0], [0, -1, 0, 0], [0, 0, 2.5, 0], [0, 0, 0, 1]],
+              "Segmentation_Extent": common, "Segmentation_MasterRepresentation": "Binary labelmap"}
+    for index, extent in enumerate(extents):
+        header |= {f"Segment{index}_Name": f"organ {index}", f"Segment{index}_Extent": extent,
+                   f"Segment{index}_DefaultColor": "1 0 0.5"}
+    nrrd.write(str(path), segments, header, index_order="C")
+
+
+def test_an_early_slicer_segmentation_is_read_in_ras_at_its_extent(tmp_path):
+    """3D Slicer took the unnamed space as RAS and put the file's first voxel at the corner of Segmentation_Extent;
+    each segment keeps its own voxels, within its own extent (the rest of the common block is not its)."""
+    segments = np.zeros((2, 2, 3, 4), np.uint8)               # [segment, z, y, x]: x 1..4, y 2..4, z 3..4
+    segments[0] = 1                                            # organ 0 fills the block
+    segments[1, :, 1:, 2:] = 1                                 # organ 1 inside it...
+    segments[1, :, 0, 0] = 1                                   # ...and a voxel outside its own extent
+    _early_segmentation(tmp_path / "early.seg.nrrd", segments, ["1 4 2 4 3 4", "3 4 3 4 3 4"])
+    volume = io.read_volume(tmp_path / "early.seg.nrrd")
+    # RAS (250 - x, 250 - y) is LPS (x - 250, y - 250): the first voxel, x 1, y 2, z 3, is at LPS (-249, -248, -112.5)
+    assert volume.meta["origin"] == pytest.approx([-249, -248, -112.5]) and volume.spacing == (1.0, 1.0, 2.5)
+    assert "early 3D Slicer" in volume.meta["orientation_from"]
+    assert volume.meta["label_table"] == {"1": {"name": "organ 0", "colour": [255, 0, 128]},
+                                          "2": {"name": "organ 1", "colour": [255, 0, 128]}}
+    from voxrender._shared import label_sets
+
+    own = label_sets.structure_counts(volume.values, volume.meta["label_sets"])
+    assert own == {1: 24, 2: 2 * 2 * 2}                       # organ 1: its extent's 8 voxels, not the stray one
+    assert volume.meta["overlaps"][0]["inside"]
+
+
+def test_an_early_slicer_segmentation_of_one_segment_takes_no_frame(tmp_path):
+    _early_segmentation(tmp_path / "one.seg.nrrd", np.ones((1, 2, 3, 4), np.uint8), ["1 4 2 4 3 4"])
+    assert io.read_volume(tmp_path / "one.seg.nrrd").values.sum() == 24
+    with pytest.raises(InputError, match="holds one volume") as info:
+        io.read_volume(tmp_path / "one.seg.nrrd", frame=0)
+    assert info.value.parameter == "frame"

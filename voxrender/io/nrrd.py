@@ -1,8 +1,16 @@
 """NRRD, ``.nrrd`` or ``.nhdr`` with a detached data file (pynrrd): raw, gzip or bzip2, oriented by its space.
 
 A 4-D file gives the volume chosen by ``frame``; a 3D Slicer ``.seg.nrrd`` also gives its segments' names and
-colours.  A folder of NRRD files is recognised, and refused with what it holds.  :func:`open_nrrd` gives the volume
-unread, a slab at a time.
+colours.  An early ``.seg.nrrd`` (3D Slicer before 4.11: ``space dimension: 4``, no ``space``, one binary volume a
+segment along its fourth axis, cropped to ``Segmentation_Extent`` of a reference grid) is read as 3D Slicer reads
+it: in RAS, shifted to its extent, each segment keeping its own voxels (:mod:`voxrender._shared.label_sets`).  A
+folder of NRRD files is recognised, and refused with what it holds.  :func:`open_nrrd` gives the volume unread, a
+slab at a time.
+
+References
+----------
+3D Slicer, ``vtkMRMLSegmentationStorageNode::ReadBinaryLabelmapRepresentation4DSpatial`` (the early format's
+reader) and ``vtkTeemNRRDReader`` (a space it cannot name is taken as RAS), https://github.com/Slicer/Slicer
 """
 
 from __future__ import annotations
@@ -16,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._shared import label_sets
 from .._shared.text import first_line
 from ..errors import InputError
 from ..space import orient
@@ -54,9 +63,36 @@ def read_nrrd(path, progress, frame=None):
                 data.seek(stored.offset)
                 values = read_voxels(data, stored.shape, stored.dtype, stored.source, stored.codec,
                                      skip=stored.skip, exact=stored.codec is None)
+    if stored.segments:
+        return _segment_volumes(values, placement, stored.header)
     if stored.frame_axis is not None:
         values = np.take(values, stored.frame, axis=stored.frame_axis)
     return Volume(values, *placement)
+
+
+def _segment_volumes(values, placement, header):
+    """The binary volumes of an early ``.seg.nrrd`` (segment after segment along numpy axis 0) as one map of label
+    codes, segment ``k`` as label ``k + 1``: each keeps its own voxels, within its own ``SegmentK_Extent`` as 3D
+    Slicer reads it.
+    """
+    spacing, meta, direction = placement
+    corner = _extent(header, "Segmentation_Extent")[0::2]
+    painter = label_sets.Painter(values.shape[1:], len(values))
+    for index, segment in enumerate(values):
+        inside = segment != 0
+        own = _extent(header, f"Segment{index}_Extent")
+        if own is not None:                                 # x, y, z bounds in the file's voxels, as z, y, x slices
+            window = tuple(slice(max(lo, 0), max(hi + 1, 0)) for lo, hi in
+                           zip(own[4::-2] - corner[::-1], own[5::-2] - corner[::-1], strict=True))
+            kept = np.zeros_like(inside)
+            kept[window] = inside[window]
+            inside = kept
+        painter.paint(index + 1, (slice(None),), inside)
+    codes, sets = painter.finish()
+    names = {int(k): v["name"] for k, v in meta.get("label_table", {}).items()}
+    meta = {**meta, "overlap_rule": label_sets.RULE, "label_sets": sets,
+            "overlaps": label_sets.overlap_report(codes, sets, names)}
+    return Volume(codes, spacing, meta, direction)
 
 
 def open_nrrd(path, frame=None):
@@ -68,7 +104,7 @@ def open_nrrd(path, frame=None):
     times the slab's).  Text encodings are read whole, as :func:`read_nrrd` reads them, and served from memory.
     """
     stored, (spacing, meta, direction) = _described(path, frame)
-    if stored.codec == "text":
+    if stored.codec == "text" or stored.segments:       # a label map: small, read whole
         values = read_nrrd(path, None, frame).values
 
         def read_slices(z0, z1):
@@ -98,7 +134,7 @@ class _Stored:
     """Where and how a NRRD file keeps its voxels: the C-ordered array ``shape`` of ``dtype`` in ``source`` from
     byte ``offset``, raw (``codec`` None), ``"gzip"`` or ``"bzip2"`` past ``skip`` inflated bytes, or ``"text"``
     (read by pynrrd, from ``offset`` of the header's file); of a 4-D file, the ``frame`` to take along numpy axis
-    ``frame_axis``.
+    ``frame_axis``, or all of them as ``segments`` (an early ``.seg.nrrd``).
     """
 
     header: dict
@@ -110,6 +146,8 @@ class _Stored:
     skip: int = 0
     frame: int | None = None
     frame_axis: int | None = None
+    segments: bool = False
+
 
     def read_text(self, f):
         """The voxels of a text encoding, read by pynrrd from ``f`` (at ``offset``) or its data file."""
@@ -148,6 +186,14 @@ def _described(path, frame):
         header = nrrd.read_header(f)
         stored = _stored(path, f, header)
     ndim = len(stored.shape)
+    if _early_slicer_segmentation(header):
+        header = _in_three_dimensions(path, header)
+        check_frame(path, frame)
+        stored.segments = True
+        spacing, meta, direction = _placement(path, header, _space_directions(path, header, 3), frame)
+        meta["orientation_from"] = ("an early 3D Slicer segmentation: its space taken as RAS, as 3D Slicer takes "
+                                    "one it cannot name, from the corner of its Segmentation_Extent")
+        return stored, (spacing, meta, direction)
     directions = _space_directions(path, header, ndim)
     axes = [0, 1, 2]                                        # the header's axes (fastest first) of the volume read
     if ndim == 4:
@@ -269,6 +315,45 @@ def _skip_to_the_end(data, encoding, promised, path):
     return max(inflated - promised, 0)
 
 
+def _early_slicer_segmentation(header):
+    """Whether ``header`` is an early 3D Slicer ``.seg.nrrd``'s: 4-D in a space of 4 dimensions it does not name,
+    with the segments along its slowest axis, which has no extent in the first three.
+    """
+    directions = header.get("space directions")
+    if header.get("dimension") != 4 or header.get("space dimension") != 4 or "space" in header:
+        return False
+    if "Segmentation_MasterRepresentation" not in header or directions is None:
+        return False
+    rows = np.asarray(directions, dtype=float)
+    return rows.shape == (4, 4) and np.all(np.isfinite(rows)) and not np.any(rows[:3, 3]) and not np.any(rows[3, :3])
+
+
+def _in_three_dimensions(path, header):
+    """The header of an early ``.seg.nrrd`` as a 3-D volume's: its first three axes in RAS (the space 3D Slicer
+    takes one it cannot name to be), the origin moved to the corner of ``Segmentation_Extent`` (the file holds that
+    part of a reference grid whose corner its ``space origin`` gives).
+    """
+    rows = np.asarray(header["space directions"], dtype=float)[:3, :3]
+    origin = np.asarray(header.get("space origin", np.zeros(4)), dtype=float)
+    extent = _extent(header, "Segmentation_Extent")
+    if origin.shape != (4,) or not np.all(np.isfinite(origin)) or extent is None:
+        raise InputError(f"{path}: its space origin or Segmentation_Extent is not what an early 3D Slicer "
+                         "segmentation holds (four numbers; six whole numbers); the header is damaged")
+    return {**header, "space": "right-anterior-superior", "space directions": rows,
+            "space origin": origin[:3] + extent[0::2] @ rows}
+
+
+def _extent(header, key):
+    """The six whole numbers (x from, x to, y.., z..) of a 3D Slicer extent in ``header``; ``None`` when absent or
+    not six whole numbers.
+    """
+    try:
+        extent = np.array([int(v) for v in str(header[key]).split()], dtype=np.int64)
+    except (KeyError, ValueError):
+        return None
+    return extent if extent.shape == (6,) else None
+
+
 def _kind(header, axis):
     """The NRRD kind of ``axis`` (fastest first), ``"domain"`` when the header gives none."""
     kinds = header.get("kinds") or []
@@ -313,7 +398,8 @@ def _segment_table(header, layer=0):
             label = int(header.get(prefix + "LabelValue", int(match.group(1)) + 1))
             if int(header.get(prefix + "Layer", 0)) != layer:
                 continue
-            colour = [int(round(float(c) * 255)) for c in str(header.get(prefix + "Color", "")).split()]
+            colour = str(header.get(prefix + "Color", header.get(prefix + "DefaultColor", "")))   # early: Default
+            colour = [int(round(float(c) * 255)) for c in colour.split()]
         except ValueError:
             continue
         if label > 0 and len(colour) == 3 and all(0 <= c <= 255 for c in colour):
