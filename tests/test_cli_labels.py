@@ -61,10 +61,49 @@ def test_labels_render_in_their_colours_with_every_output(tmp_path, label_file):
                  tmp_path / "legend.png")
     assert result.exit_code == 0, result.output
     legend = iio.imread(tmp_path / "legend.png")
-    changed = np.nonzero((legend != picture).any(axis=2))
-    assert changed[0].min() >= 64 - 7 - 12 * len(listed)                    # a band at the bottom
+    assert legend.shape[1] > 64 and np.array_equal(legend[:, :64], picture)  # 3 names are much of 64 pixels
     for entry in listed:                                            # a swatch of each label's colour
         assert (legend == entry["colour"]).all(axis=2).sum() >= 9 * 9
+
+
+def test_a_long_legend_goes_beside_the_picture_not_over_it(tmp_path):
+    """40 labels at --size 128 covered the whole object with their names (issue 33, item 8): the legend goes on a
+    panel to the right, in columns, and the picture itself is what it is without one."""
+    labels = np.zeros((40, 40, 40), np.uint8)
+    for k in range(40):                                       # 40 slabs side by side, all seen from the front
+        labels[4:36, 4:36, k] = k + 1
+    label_file = write_nifti(tmp_path / "many.nii.gz", labels)
+    made = {}
+    for name, legend in (("plain", []), ("legend", ["--legend"])):
+        result = run("render", label_file, "--labels", "--size", "128", "--view", "anterior", *legend,
+                     "--labels-out", tmp_path / f"{name}.json", "-o", tmp_path / f"{name}.png")
+        assert result.exit_code == 0, result.output
+        made[name] = iio.imread(tmp_path / f"{name}.png")
+    plain, legend = made["plain"], made["legend"]
+    assert legend.shape[0] == 128 and legend.shape[1] > 128
+    assert np.array_equal(legend[:, :128], plain)              # nothing drawn over the object
+    panel = legend[:, 128:]
+    shown = json.loads((tmp_path / "legend.json").read_text())["labels"]
+    assert len(shown) == 40
+    for entry in shown:                                        # a swatch of each label's colour, on the panel
+        assert (panel == entry["colour"]).all(axis=2).sum() >= 9 * 9, entry
+
+
+def test_an_animation_takes_frames_whose_legends_differ_in_width(tmp_path):
+    """From the front 32 labels are seen (a legend beside the frame), from the back one (in its corner): the GIF
+    holds every frame, the narrower ones widened to the widest."""
+    labels = np.zeros((40, 40, 40), np.uint8)
+    for k in range(4, 36):
+        labels[4:36, 4:30, k] = k + 1
+    labels[4:36, 30:36, 4:36] = 41                            # a plate that hides them all from behind
+    label_file = write_nifti(tmp_path / "many.nii.gz", labels)
+    result = run("batch", label_file, "--labels", "--view", "anterior", "--view", "posterior", "--size", "96",
+                 "--legend", "--gif", "--jobs", "1", "-o", tmp_path / "out")
+    assert result.exit_code == 0, result.output
+    front, back = (iio.imread(tmp_path / "out" / "many" / f"{view}.png") for view in ("anterior", "posterior"))
+    assert front.shape[1] > 96 == back.shape[1]
+    frames = iio.imread(tmp_path / "out" / "many.gif")
+    assert frames.shape[:3] == (2, 96, front.shape[1])
 
 
 def test_a_colour_table_names_the_labels(tmp_path, label_file):

@@ -164,8 +164,9 @@ def test_many_labels_take_their_colours_from_one_lookup():
     assert (picture == colours[labels]).all()
     with_legend = slice_picture(np.zeros(labels.shape), (1.0, 1.0), BLACK, labels, table, legend=True,
                                 scale_bar=False)
-    assert (with_legend != slice_picture(np.zeros(labels.shape), (1.0, 1.0), BLACK, labels, table,
-                                         scale_bar=False)).any()
+    plain = slice_picture(np.zeros(labels.shape), (1.0, 1.0), BLACK, labels, table, scale_bar=False)
+    assert with_legend.shape[1] > plain.shape[1]               # 400 names: beside the slice, not over it
+    assert np.array_equal(with_legend[:, :plain.shape[1]], plain)
 
 
 def test_labels_without_a_table_take_the_palette():
@@ -185,6 +186,7 @@ def test_legend_lists_only_the_labels_the_slice_shows():
                             scale_bar=False)
     assert (picture == (255, 0, 255)).all(axis=2).any()
     assert not (picture == (0, 255, 0)).all(axis=2).any()
+    assert picture.shape == (120, 160, 3)                      # one name: in the corner, the picture unchanged
 
 
 def test_scale_bar_is_a_round_length_of_a_fifth_of_the_width():

@@ -856,7 +856,10 @@ def _animate(item, out_dir, kind, fps, rows):
     if len(frames) != len(item.views) or len(frames) < 2:
         return
     target = Path(out_dir) / f"{item.name}.{kind}"
-    pictures = np.stack([iio.imread(f) for f in frames])
+    pictures = [iio.imread(f) for f in frames]
+    widest = max(p.shape[1] for p in pictures)         # a legend beside a frame widens it by the labels it shows
+    pictures = np.stack([np.pad(p, [(0, 0), (0, widest - p.shape[1])] + [(0, 0)] * (p.ndim - 2), mode="edge")
+                         for p in pictures])
     try:
         with atomic_output(target) as tmp:
             if kind == "gif":

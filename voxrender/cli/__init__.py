@@ -307,7 +307,8 @@ def _render_options_decorator(command):
         click.option("--colours", "--colors", "colours", type=click.Path(path_type=Path), metavar="FILE",
                      help="Names and colours of labels: CSV or JSON (label, name, r, g, b), Slicer .ctbl, or an "
                           "ITK-SNAP label description (.txt)."),
-        click.option("--legend", is_flag=True, help="Draw the names and colours of the labels the picture shows."),
+        click.option("--legend", is_flag=True, help="Draw the names and colours of the labels the picture shows "
+                     "(beside it when they would cover much of it)."),
         click.option("--background", default="black", show_default=True, metavar="NAME|GREY|R,G,B|#RRGGBB"),
         click.option("--ao", is_flag=True, help="Darken creases and pits (screen-space ambient occlusion)."),
         click.option("--orientation-marks", is_flag=True,
