@@ -20,14 +20,15 @@ STUDY_COMPONENT = "1.2.840.10008.3.1.2.3.1"      # Detached Study Management: wh
 @dataclass
 class Roi:
     """One ROI: its ``name``, ``contours`` (each an (N, 3) array of LPS points in mm, or a ``(points, type)`` pair
-    for another ContourGeometricType than CLOSED_PLANAR), its ``colour`` (ROIDisplayColor, none when ``None``) and
-    its ROINumber (by default its place in the list, from 1).
+    for another ContourGeometricType than CLOSED_PLANAR), its ``colour`` (ROIDisplayColor, none when ``None``), its
+    ROINumber (by default its place in the list, from 1) and its RTROIInterpretedType (``kind``).
     """
 
     name: str
     contours: list = field(default_factory=list)
     colour: tuple | None = None
     number: int | None = None
+    kind: str = "ORGAN"
 
 
 def rtstruct_dataset(rois, series_uid=None, frame_of_reference=None, study_uid="1.2.3", image_uids=()):
@@ -74,7 +75,7 @@ def rtstruct_dataset(rois, series_uid=None, frame_of_reference=None, study_uid="
         ds.ROIContourSequence.append(contours)
         observation = Dataset()
         observation.ObservationNumber, observation.ReferencedROINumber = number, number
-        observation.RTROIInterpretedType, observation.ROIInterpreter = "ORGAN", ""
+        observation.RTROIInterpretedType, observation.ROIInterpreter = roi.kind, ""
         ds.RTROIObservationsSequence.append(observation)
     return ds
 
@@ -143,12 +144,15 @@ def traced_contours(values, affine, level=0.5, outside=0):
     return contours
 
 
-def write_rtstruct_of_labels(path, labels, affine, names, colours=None, **references):
+def write_rtstruct_of_labels(path, labels, affine, names, colours=None, outline=None, **references):
     """Write an RTSTRUCT whose ROI k (ROINumber k) outlines ``labels == k``, traced slice by slice
-    (:func:`traced_contours`), named ``names[k - 1]``.
+    (:func:`traced_contours`), named ``names[k - 1]``; with ``outline`` (a mask), a last ROI "BODY" of type
+    EXTERNAL outlines it.
     """
     rois = [Roi(name, traced_contours(labels == k, affine), None if colours is None else colours[k - 1], k)
             for k, name in enumerate(names, start=1)]
+    if outline is not None:
+        rois.append(Roi("BODY", traced_contours(outline, affine), (0, 255, 0), len(names) + 1, "EXTERNAL"))
     return write_rtstruct(path, rois, **references)
 
 

@@ -104,3 +104,64 @@ def test_a_seg_of_a_few_slices_pairs_without_a_warning(tmp_path, study):
     ct, seg, _ = study
     result = run("render", ct, "--labels-from", seg, "--size", "32", "-o", tmp_path / "x.png")
     assert result.exit_code == 0 and "warning" not in result.stderr, result.stderr
+
+
+def test_the_patients_outline_is_left_out_of_the_surface_and_outlined_in_slices(tmp_path, study):
+    """An RTSTRUCT whose EXTERNAL ROI, BODY, holds the organs: its surface would hide them, so it is left out of
+    the surface with one warning and still listed with its volume; --with-body draws it; in slices it is outlined
+    at its own edge, not filled, and not outlined around each organ inside it."""
+    from rtstruct_files import references_of, write_rtstruct_of_labels
+
+    ct, _, _ = study
+    volume = io.read_volume(ct)
+    body = np.zeros(blobs().shape, bool)
+    body[:, 2:-2, 2:-2] = True                                # every organ lies inside it
+    assert body[blobs() > 0].all()
+    structure_set = write_rtstruct_of_labels(tmp_path / "rs.dcm", blobs(), patient_affine(volume), NAMES,
+                                             outline=body, **references_of(sorted(ct.iterdir())))
+    result = run("render", ct, "--labels-from", structure_set, "--size", "64", "--labels-out", tmp_path / "l.json",
+                 "-o", tmp_path / "organs.png")
+    assert result.exit_code == 0, result.output
+    assert "BODY (label 4) is left out of the surface" in result.stderr and "--with-body" in result.stderr
+    listed = {v["name"]: v for v in json.loads((tmp_path / "l.json").read_text())["labels"]}
+    assert listed["BODY"]["pixels"] == 0 and listed["BODY"]["voxels"] == int(body.sum())
+    assert all(listed[name]["pixels"] > 0 for name in NAMES)
+    result = run("render", ct, "--labels-from", structure_set, "--with-body", "--size", "64", "--labels-out",
+                 tmp_path / "b.json", "-o", tmp_path / "body.png")
+    assert result.exit_code == 0 and "left out" not in result.stderr, result.output
+    listed = {v["name"]: v for v in json.loads((tmp_path / "b.json").read_text())["labels"]}
+    assert listed["BODY"]["pixels"] > 0
+
+
+def test_a_structure_inside_another_is_outlined_by_its_own_edge():
+    """BODY around an organ: BODY's outline is the outer edge only (it was drawn around the organ too, since the
+    picture shows the organ there); as an envelope it is not filled; the organ keeps its own outline and fill."""
+    from voxrender._shared import label_sets
+    from voxrender.pictures.display import DisplayWindow
+    from voxrender.qc.slices import slice_picture
+
+    painter = label_sets.Painter((1, 20, 20), 2)
+    body = np.zeros((1, 20, 20), bool)
+    body[0, 2:18, 2:18] = True
+    organ = np.zeros((1, 20, 20), bool)
+    organ[0, 7:13, 7:13] = True
+    painter.paint(1, (slice(None),), body)
+    painter.paint(2, (slice(None),), organ)
+    codes, sets = painter.finish()
+    labels = label_sets.resolve(codes, sets)[0]
+    table = {1: ("BODY", (0, 255, 0)), 2: ("organ", (255, 0, 0))}
+    window = DisplayWindow(0, 1)
+
+    def draw(overlay, **kwargs):
+        return slice_picture(np.zeros((20, 20)), (1.0, 1.0), window, labels, table, overlay, opacity=0.5,
+                             scale_bar=False, **kwargs)
+
+    green = (draw("outline", shared=(codes[0], sets)) == (0, 255, 0)).all(axis=2)
+    assert green[2, 2:18].all() and green[2:18, 2].all()          # the skin
+    assert not green[5:15, 5:15].any()                            # not around the organ
+    before = (draw("outline") == (0, 255, 0)).all(axis=2)
+    assert before[6, 7:13].any()                                  # as it was: BODY's edge around the organ
+    filled = draw("fill", shared=(codes[0], sets), envelopes=(1,))
+    grey = slice_picture(np.zeros((20, 20)), (1.0, 1.0), window, overlay=None, scale_bar=False)
+    assert (filled[4, 4] == grey[4, 4]).all() and (filled[2, 2] == (0, 255, 0)).all()   # BODY: outlined only
+    assert filled[10, 10, 0] > grey[10, 10, 0] and filled[10, 10, 1] < grey[10, 10, 1]   # the organ: filled

@@ -13,7 +13,8 @@ Then, on the grid where they are used:
 - :func:`resolve`: one label a voxel for the pictures, the most specific of the chosen structures it is in (the
   smallest, so an organ inside BODY shows in slices and cut views);
 - :func:`member_mask`: one structure's own voxels (its outline);
-- :func:`overlap_report`: which pairs share voxels, and which lies inside which.
+- :func:`overlap_report`: which pairs share voxels, and which lies inside which;
+- :func:`envelopes`: the structures that hold the patient (BODY, External), which a surface leaves out.
 
 >>> painter = Painter((1, 2, 4), labels=2)
 >>> inside = np.array([[True, True, True, True], [True, True, True, True]])
@@ -34,6 +35,23 @@ from ..errors import InputError
 
 RULE = ("each structure keeps its own voxels; where several share a voxel, the pictures show the smallest (the most "
         "specific)")
+# The names of the structure that holds the patient's whole outline (compared without case, spaces, _ or -).
+ENVELOPE_NAMES = frozenset({"body", "external", "bodyoutline", "outercontour"})
+
+
+def envelopes(meta):
+    """The labels of a label map's ``meta`` that hold the patient's outline: an RTSTRUCT ROI of type EXTERNAL
+    (``meta["envelopes"]``), or a structure named BODY or External; a surface of one hides everything inside it.
+
+    >>> envelopes({"label_table": {"1": {"name": "BODY"}, "2": {"name": "Spinal-Cord"}}, "envelopes": [3]})
+    [1, 3]
+    """
+    found = {int(k) for k in meta.get("envelopes") or []}
+    for label, entry in (meta.get("label_table") or {}).items():
+        name = "".join(c for c in str((entry or {}).get("name") or "").lower() if c.isalnum())
+        if name in ENVELOPE_NAMES:
+            found.add(int(label))
+    return sorted(found)
 
 
 class Painter:

@@ -422,10 +422,12 @@ def _encode_task(item, cache_dir, out_dir=None):
 
 
 def _study_files(target):
-    """The grey values (and labels) a cache entry keeps beside the object when its pictures draw them."""
+    """The grey values and the record a cache entry keeps beside the object when its pictures draw them (the labels
+    and codes too, when it has them).
+    """
     from ..qc.study import saved_files
 
-    grey, labels, record = saved_files(target.with_suffix(""))
+    grey, _, record, _ = saved_files(target.with_suffix(""))
     return [grey, record]
 
 

@@ -143,7 +143,7 @@ def _prep_options(options):
     if options["labels"] or options["label"] or options["labels_from"]:
         chosen = parse.labels(options["label"]) if options["label"] else None
         labels = prep.LabelSelection(chosen, bool(options["labels"] or options["labels_from"] and not chosen),
-                                     options["labels_from"])
+                                     options["labels_from"], envelopes=options["with_body"])
     tissues = parse.presets(options["preset"]) if options["preset"] else []
     if tissues and options["threshold"] is not None:
         raise InputError("give --preset or --threshold, not both (a preset is a window and a colour)",
@@ -264,6 +264,9 @@ def _prep_options_decorator(command):
         click.option("--labels-from", type=click.Path(path_type=Path), metavar="FILE",
                      help="A label map of INPUT (same grid): show its labels; --threshold/--preset then also select "
                           "INPUT's values."),
+        click.option("--with-body", is_flag=True,
+                     help="Draw the surface of the patient's outline too (an RTSTRUCT ROI of type EXTERNAL, or a "
+                          "structure named BODY or External), which is left out by default: it hides the rest."),
         click.option("--crop", metavar="X0:X1,Y0:Y1,Z0:Z1", help="Subregion in input voxel indices."),
         click.option("--resample/--no-resample", default=True, show_default=True,
                      help="Resample to cubic voxels from the spacing."),

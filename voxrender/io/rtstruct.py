@@ -141,6 +141,7 @@ def read_rtstruct(path, image, progress=None):
             "series": str(dataset.get("SeriesInstanceUID", "")), "contours": drawn,
             "skipped_contours": {why: n for why, n in skipped.items() if n},
             "overlap_rule": label_sets.RULE, "label_sets": sets, "overlaps": overlaps, "empty_labels": empty,
+            "envelopes": _external(dataset, numbers),
             "label_table": {str(k): {"name": names[k - 1], "colour": colours[k - 1]}
                             for k in range(1, len(numbers) + 1)}}
     for key in ("origin", "orientation", "orientation_from", "spacing_from"):
@@ -312,6 +313,20 @@ def _structures(dataset, path):
         raise InputError(f"RTSTRUCT {path} numbers two ROIs {twice[0]} (ROINumber); the file is damaged")
     numbers.sort()
     return numbers, [names[n] for n in numbers], [colours.get(n) for n in numbers], frame_of_reference
+
+
+def _external(dataset, numbers):
+    """The labels (1 = the first of ``numbers``) of the ROIs whose RTROIInterpretedType is EXTERNAL: the patient's
+    outline.  Unreadable observations say nothing (the type is optional, and only decides what a surface shows).
+    """
+    external = set()
+    try:
+        for item in dataset.get("RTROIObservationsSequence") or []:
+            if str(item.get("RTROIInterpretedType", "")).strip().upper() == "EXTERNAL":
+                external.add(int(item.ReferencedROINumber))
+    except damaged_file_errors() + (AttributeError, IndexError):
+        return []
+    return [label for label, number in enumerate(numbers, start=1) if number in external]
 
 
 def _contours(dataset, path, numbers):

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import os
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -276,6 +277,12 @@ def _encode_labels(volume, read, prepare, meta, progress):
     labels, info = prep.label_map(replace(label_volume, spacing=volume.spacing), selection, crop=prepare.crop,
                                   voxel=prepare.voxel, resample=prepare.resample)
     meta.update(labels=info["labels"], voxel_mm=info["voxel"])
+    if info["set_aside"]:
+        table = label_volume.meta.get("label_table") or {}
+        names = ", ".join(f"{(table.get(str(k)) or {}).get('name') or 'label'} (label {k})" for k in info["set_aside"])
+        meta["set_aside"] = info["set_aside"]
+        warnings.warn(f"{names} is left out of the surface: it holds the patient's outline and would hide the "
+                      "structures inside it (draw it with --with-body, or by choosing its label)", stacklevel=2)
     if selection.source is not None and prepare.threshold is not None:
         mask, found = prep.binarize(volume, prepare.threshold, crop=prepare.crop, voxel=prepare.voxel,
                                     resample=prepare.resample, progress=progress)
@@ -295,7 +302,7 @@ def _encode_labels(volume, read, prepare, meta, progress):
     if selection.separate:
         table = label_volume.meta.get("label_table")
         if table:
-            meta["label_table"] = {k: v for k, v in table.items() if int(k) in info["labels"]}
+            meta["label_table"] = {k: v for k, v in table.items() if int(k) in info["voxels"]}
         encoded = segments.encode_labels(labels, info["spacing"], meta)
     else:
         encoded = segments.encode(labels > 0, info["spacing"], meta)

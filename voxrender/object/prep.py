@@ -499,11 +499,16 @@ class LabelSelection:
         Each label an object of its own (a multi-label picture), or all chosen labels one object.
     source : path, optional
         A label map paired with the input (a CT and its segmentation); default: the input is the label map.
+    envelopes : bool
+        When every label is drawn (``chosen`` None), draw the patient's outline too: an RTSTRUCT ROI of type
+        EXTERNAL, or a structure named BODY or External (:func:`voxrender._shared.label_sets.envelopes`).  It is
+        left out by default, since its surface hides every structure inside it; it stays in slices and counts.
     """
 
     chosen: tuple | None = None
     separate: bool = True
     source: object = None
+    envelopes: bool = False
 
     def __post_init__(self):
         if self.chosen is not None:
@@ -529,8 +534,9 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
     labels : ndarray of uint16, ``[z, y, x]``
         The chosen labels; 0 elsewhere (and everywhere, with ``separate=False``, the object is ``labels > 0``).
     info : dict
-        ``labels`` (the chosen labels present), ``voxels`` (``{label: count}`` of the chosen labels in the
-        cropped map, before resampling), ``voxel`` (mm), ``spacing``.
+        ``labels`` (the chosen labels present), ``voxels`` (``{label: count}`` of the chosen labels, and of those
+        set aside, in the cropped map, before resampling), ``voxel`` (mm), ``spacing``, ``set_aside`` (the labels of
+        the patient's outline left out of the object, still counted; see ``LabelSelection.envelopes``).
 
     Examples
     --------
@@ -547,6 +553,13 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
     sets = volume.meta.get("label_sets") or {}                            # structures that share voxels
     counts = label_counts(values, sets)                                   # each structure's own voxels
     chosen = chosen_labels(counts, selection.chosen, source, crop is not None)
+    aside = []
+    if selection.chosen is None and not selection.envelopes:
+        aside = [label for label in label_sets.envelopes(volume.meta) if label in counts]
+        if len(aside) < len(chosen):                    # an outline alone is still drawn
+            chosen = np.setdiff1d(chosen, aside)
+        else:
+            aside = []
     voxel, out_shape = cubic_grid(values.shape, volume.spacing, voxel, resample)
     spacing = tuple(float(s) for s in volume.spacing)
     if out_shape is not None:
@@ -558,8 +571,9 @@ def label_map(volume, selection=None, *, crop=None, voxel=None, resample=True):
     labels = label_sets.resolve(values, sets, chosen.tolist())
     if not labels.any():
         raise InputError("the chosen labels vanish at this voxel size; choose a smaller one", parameter="voxel")
-    return labels, {"labels": [int(v) for v in chosen], "voxels": {int(v): counts[int(v)] for v in chosen},
-                    "voxel": voxel, "spacing": spacing}
+    counted = sorted([*chosen.tolist(), *aside])
+    return labels, {"labels": [int(v) for v in chosen], "voxels": {int(v): counts[int(v)] for v in counted},
+                    "voxel": voxel, "spacing": spacing, "set_aside": aside}
 
 
 def chosen_labels(counts, chosen, source="the label map", cropped=False):

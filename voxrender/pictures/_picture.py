@@ -374,12 +374,14 @@ def _why_empty(segments, view, options):
 
 
 def label_table(segments, given=None):
-    """Name and colour of every label of a multi-label object: ``{label: (name, (r, g, b))}``, from ``given`` (a
-    colour table), else from those kept with the object, else the built-in palette (``colours.label_colours``).
+    """Name and colour of every label of a multi-label object, and of the patient's outline left out of it
+    (``meta["set_aside"]``): ``{label: (name, (r, g, b))}``, from ``given`` (a colour table), else from those kept
+    with the object, else the built-in palette (``colours.label_colours``).
     """
     from .colours import label_colours
 
     present = segments.meta.get("labels") or np.unique(np.asarray(segments.labels)).tolist()
+    present = sorted({*present, *(segments.meta.get("set_aside") or [])})   # the outline left out: still listed
     return label_colours(present, segments.meta.get("label_table"), given)
 
 

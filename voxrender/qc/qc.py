@@ -132,9 +132,11 @@ def slice_pictures(study, options=None, colours=None):
     def draw(plane, index, caption):
         image, pixel_mm = plane_image(grey, volume.spacing, plane, index)
         label_slice = None if labels is None else plane_image(labels, volume.spacing, plane, index)[0]
+        shared = None if study.codes is None else (plane_image(study.codes, volume.spacing, plane, index)[0],
+                                                   study.sets)
         letters = edge_letters(View.preset(PLANES[plane])) if framed else None
         rgb = slice_picture(image, pixel_mm, window, label_slice, table, overlay, opacity, options.size, letters,
-                            True, options.legend)
+                            True, options.legend, shared=shared, envelopes=study.envelopes)
         return caption, rgb
 
     if not isinstance(options.at, str):

@@ -60,6 +60,12 @@ class Study:
     own_voxels : dict, optional
         ``{label: voxels}`` of each chosen structure on its own, where structures share voxels (``labels`` then
         shows the most specific one a voxel is in, :mod:`voxrender._shared.label_sets`).
+    codes, sets : optional
+        Where structures share voxels, the label map's codes on the volume's grid and their sets, so that each
+        structure is outlined by its own boundary.
+    envelopes : tuple of int
+        The labels of the patient's outline (BODY, External), outlined in slices, never filled
+        (:func:`voxrender._shared.label_sets.envelopes`).
     """
 
     volume: io.Volume
@@ -71,6 +77,9 @@ class Study:
     overlaps: list = field(default_factory=list)
     has_grey: bool = True
     own_voxels: dict | None = None
+    codes: np.ndarray | None = None
+    sets: dict | None = None
+    envelopes: tuple = ()
 
     @property
     def step(self):
@@ -127,6 +136,8 @@ class Study:
         output.write_npy(stem.with_name(stem.name + ".grey.npy"), np.ascontiguousarray(self.volume.values))
         if self.labels is not None:
             output.write_npy(stem.with_name(stem.name + ".labels.npy"), np.ascontiguousarray(self.labels))
+        if self.codes is not None:
+            output.write_npy(stem.with_name(stem.name + ".codes.npy"), np.ascontiguousarray(self.codes))
         volume = self.volume
         output.write_json(stem.with_name(stem.name + ".study.json"), {
             "spacing": list(volume.spacing), "origin": volume.meta.get("origin"),
@@ -134,7 +145,8 @@ class Study:
             "meta": {k: v for k, v in volume.meta.items() if k in _KEPT_META},
             "labels": self.labels is not None, "voxel": self.voxel, "resampled": self.resampled,
             "stored_table": self.stored_table, "overlaps": self.overlaps,
-            "has_grey": self.has_grey, "own_voxels": self.own_voxels})
+            "has_grey": self.has_grey, "own_voxels": self.own_voxels, "codes": self.codes is not None,
+            "sets": self.sets, "envelopes": list(self.envelopes)})
 
 
 _KEPT_META = ("source", "format", "modality", "units", "series", "orientation", "reoriented", "padding",
@@ -142,20 +154,22 @@ _KEPT_META = ("source", "format", "modality", "units", "series", "orientation", 
 
 
 def saved_files(stem):
-    """The files :meth:`Study.save` writes for ``stem`` (the labels' only when it has labels)."""
+    """The files :meth:`Study.save` writes for ``stem`` (the labels' and codes' only when it has them)."""
     stem = Path(stem)
-    return [stem.with_name(stem.name + suffix) for suffix in (".grey.npy", ".labels.npy", ".study.json")]
+    return [stem.with_name(stem.name + suffix) for suffix in (".grey.npy", ".labels.npy", ".study.json", ".codes.npy")]
 
 
 def load_saved(stem, encoded=None):
     """The :class:`Study` that :meth:`Study.save` wrote at ``stem``, its arrays memory-mapped."""
-    grey, labels, about = saved_files(stem)
+    grey, labels, about, codes = saved_files(stem)
     record = json.loads(about.read_text())
     meta = {**record["meta"], **({"origin": record["origin"]} if record["origin"] is not None else {})}
     volume = io.Volume(np.load(grey, mmap_mode="r"), tuple(record["spacing"]), meta,
                        None if record["direction"] is None else np.asarray(record["direction"]))
     return Study(volume, np.load(labels, mmap_mode="r") if record["labels"] else None, record["stored_table"], encoded,
-                 record["voxel"], record["resampled"], record["overlaps"], record["has_grey"], record["own_voxels"])
+                 record["voxel"], record["resampled"], record["overlaps"], record["has_grey"], record["own_voxels"],
+                 np.load(codes, mmap_mode="r") if record.get("codes") else None, record.get("sets"),
+                 tuple(record.get("envelopes") or ()))
 
 
 def cropped(volume, region):
@@ -218,6 +232,7 @@ def load_study(path, read=None, prepare=None, progress=None, encode=True):
     volume = read.read(path, progress)
     seconds = {"load": time.perf_counter() - started}
     selection, labels, table, overlaps, own = prepare.labels, None, None, [], None
+    codes, sets, envelopes = None, None, ()
     if selection is not None:
         if selection.source is None:                       # the input is the label map
             labels_volume = volume
@@ -230,8 +245,11 @@ def load_study(path, read=None, prepare=None, progress=None, encode=True):
             labels_volume = replace(volume, values=on_image_grid(found, volume, name),
                                     meta={**found.meta, "source": str(name), **where})
             prepare = replace(prepare, labels=replace(selection, source=labels_volume))
-        labels, own = _chosen(prep.crop(labels_volume.values, prepare.crop), selection.chosen, labels_volume,
-                              prepare.crop is not None)
+        codes = prep.crop(labels_volume.values, prepare.crop)
+        labels, own = _chosen(codes, selection.chosen, labels_volume, prepare.crop is not None)
+        sets = labels_volume.meta.get("label_sets") or None
+        codes = codes if sets else None
+        envelopes = () if selection.envelopes else tuple(label_sets.envelopes(labels_volume.meta))
         table = labels_volume.meta.get("label_table")
         overlaps = labels_volume.meta.get("overlaps") or []
     encoded = None
@@ -242,7 +260,8 @@ def load_study(path, read=None, prepare=None, progress=None, encode=True):
     part = cropped(volume, prepare.crop)
     voxel, grid = prep.cubic_grid(part.shape, part.spacing, prepare.voxel, prepare.resample)   # the object's grid
     return Study(part, labels, table, encoded, float(voxel), grid is not None, overlaps,
-                 has_grey=selection is None or selection.source is not None, own_voxels=own)
+                 has_grey=selection is None or selection.source is not None, own_voxels=own, codes=codes, sets=sets,
+                 envelopes=envelopes)
 
 
 def _chosen(values, chosen, source, cropped):
