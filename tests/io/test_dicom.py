@@ -330,3 +330,32 @@ def test_a_series_of_two_regular_runs_reads_the_longer_and_says_so(tmp_path):
     assert len(caught) == 1 and "slices 1 to 4 of 6" in str(caught[0].message) and "s4.dcm, s5.dcm" in \
         str(caught[0].message)
     assert np.array_equal(volume.values, values[:4] - 1024)
+
+
+def test_another_run_of_an_uneven_series_is_read_when_asked_for(tmp_path):
+    """The run after the gap, by run=2 (--run 2), read and opened as a stream alike; a run it has not is refused
+    naming the parameter; and the command line says the warning once, though info reads the series twice."""
+    from test_cli import assert_bad_input, run
+
+    values = np.arange(6 * 4 * 3, dtype=np.int16).reshape(6, 4, 3)
+    paths = write_series(tmp_path / "ct", values, names=[f"s{k}.dcm" for k in range(6)])
+    for k, path in enumerate(paths[4:]):
+        _moved(path, 50.0 + 2.0 * k)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        volume = io.read_volume(tmp_path / "ct", run=2)
+        stack = io.open_stack(tmp_path / "ct", run=2)
+    assert np.array_equal(volume.values, values[4:] - 1024)
+    assert np.array_equal(stack.read_slices(0, 2), values[4:] - 1024)
+    assert "reading regular run 2, slices 5 to 6 of 6" in str(caught[0].message)
+    with pytest.raises(InputError, match="run 3 is not one of the series' 2 regular runs") as info:
+        io.read_volume(tmp_path / "ct", run=3)
+    assert info.value.parameter == "run"
+    with pytest.raises(InputError, match="npy input takes no run"):
+        np.save(tmp_path / "v.npy", values)
+        io.read_volume(tmp_path / "v.npy", run=1)
+    result = run("info", tmp_path / "ct")
+    assert result.exit_code == 0 and result.stderr.count("warning:") == 1, result.stderr
+    assert "choose another run with --run" in result.stderr
+    assert run("info", tmp_path / "ct", "--run", "2").stdout.count("[3, 4, 2]") == 1
+    assert_bad_input(run("info", tmp_path / "ct", "--run", "3"), "--run", "is not one of the series' 2")

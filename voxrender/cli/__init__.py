@@ -79,7 +79,15 @@ def _bar(iterable, length, label):
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):
-    click.echo(f"warning: {message}", err=True)
+    """A warning as one line, each once a command: a file read twice (``info`` reads it, then opens it as a stream)
+    says what it says once.
+    """
+    if str(message) not in _WARNED:
+        _WARNED.add(str(message))
+        click.echo(f"warning: {message}", err=True)
+
+
+_WARNED = set()
 
 
 # ---------------------------------------------------------------- flags and their parsers
@@ -135,7 +143,7 @@ def _read_options(options):
     if options["orientation"] is not None:
         orient.direction_of(options["orientation"])          # a bad code is an error before anything is read
     return ReadOptions(options["format"], raw, spacing, options["series"], options["frame"], options["orientation"],
-                       options["reorient"], options["level"])
+                       options["reorient"], options["level"], options["run"])
 
 
 def _prep_options(options):
@@ -234,6 +242,9 @@ def _read_options_decorator(command):
         click.option("--raw", metavar="WxH:DTYPE:ENDIAN", help="Headerless slices, e.g. 64x64:uint16:little."),
         click.option("--spacing", metavar="X,Y,Z", help="Voxel spacing in mm; overrides the files."),
         click.option("--series", metavar="UID", help="DICOM SeriesInstanceUID, when a folder holds several."),
+        click.option("--run", type=click.IntRange(1), metavar="N",
+                     help="Of a DICOM series with uneven slice steps, the regular run to read, from 1 in slice "
+                          "order (default: the longest)."),
         click.option("--frame", type=int, metavar="N", help="The volume to read from a 4-D NIfTI or NRRD (from 0)."),
         click.option("--level", type=click.IntRange(0), metavar="N",
                      help="The level of a multiscale OME-Zarr, 0 the finest (default: for render, the finest that "
@@ -382,6 +393,7 @@ def _output_options_decorator(command):
 class _Group(click.Group):
     def main(self, args=None, prog_name=None, **extra):
         warnings.showwarning = _one_line_warning
+        _WARNED.clear()
         try:
             return super().main(args, prog_name, standalone_mode=False, **extra)
         except click.exceptions.Exit as done:

@@ -125,7 +125,7 @@ def detect_format(path, raw=None):
 
 
 def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, frame=None, level=None,
-                orientation=None, reorient=True, progress=None):
+                orientation=None, reorient=True, progress=None, run=None):
     """Read a slice stack into a :class:`Volume`, in the canonical patient frame.
 
     Parameters
@@ -144,6 +144,9 @@ def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, fra
         The volume to read from a 4-D file (NIfTI, NRRD).
     level : int, optional
         The level of a multiscale image (OME-Zarr) to read: 0 the finest (default: the finest level).
+    run : int, optional
+        Of a DICOM series whose slice steps are uneven (split into regular runs), the run to read, from 1 in the
+        order of the slice positions (default: the longest).
     orientation : str, optional
         An orientation code (``"RAS"``, ``"LPI"`` ...) for inputs whose header says none, or to override it.
     reorient : bool
@@ -178,7 +181,7 @@ def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, fra
     if path.is_file() and not path.stat().st_size:       # every reader would say it its own way, or not at all
         raise InputError(f"{path} is an empty file (0 bytes); it was cut off or not written")
     reader = READERS[format]
-    given = {"raw": raw, "series": series, "frame": frame, "level": level}
+    given = {"raw": raw, "series": series, "frame": frame, "level": level, "run": run}
     for name, value in given.items():
         if value is not None and name not in reader.options:
             raise InputError(f"{format} input takes no {name}", parameter=name)
@@ -196,7 +199,7 @@ def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, fra
 
 
 def open_stack(path, *, format="auto", raw=None, spacing=None, series=None, frame=None, level=None,
-               orientation=None, reorient=True):
+               orientation=None, reorient=True, run=None):
     """A slice stack in the canonical patient frame, unread: :func:`read_volume`'s stack, read slab by slab.
 
     Takes :func:`read_volume`'s parameters but ``progress`` (the reading happens later).  Returns a
@@ -225,7 +228,7 @@ def open_stack(path, *, format="auto", raw=None, spacing=None, series=None, fram
     if reader.open is None:
         raise InputError(f"{format} input is read whole, not slab by slab; read it with read_volume",
                          parameter="format")
-    given = {"raw": raw, "series": series, "frame": frame, "level": level}
+    given = {"raw": raw, "series": series, "frame": frame, "level": level, "run": run}
     for name, value in given.items():
         if value is not None and name not in reader.options:
             raise InputError(f"{format} input takes no {name}", parameter=name)

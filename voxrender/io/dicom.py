@@ -49,15 +49,17 @@ PLAIN_SYNTAXES = {"1.2.840.10008.1.2": True,            # Implicit VR Little End
 HEADER_BYTES = 1 << 16
 
 
-def read_dicom(folder, progress, series=None):
-    """Read the DICOM series in ``folder`` (the one whose SeriesInstanceUID is ``series``, when it holds several)."""
+def read_dicom(folder, progress, series=None, run=None):
+    """Read the DICOM series in ``folder`` (the one whose SeriesInstanceUID is ``series``, when it holds several;
+    of a series with uneven steps, regular run ``run``, from 1, else the longest).
+    """
     chosen, aside, plain = _series_files(folder, progress, series)
     if _multiframe(chosen, folder):
         with _header_values(folder):
             volume = _read_multiframe(chosen[0][0])
         volume.meta.update(_beside(aside))
         return volume
-    items, spacing, meta, direction = _slices_placed(folder, chosen, aside)
+    items, spacing, meta, direction = _slices_placed(folder, chosen, aside, run)
     at = [plain.get(f) for f, _ in items]
     if all(a is not None for a in at) and len({a.dtype for a in at}) == 1:
         values = _read_plain_slices(items, at, progress, folder)
@@ -67,7 +69,7 @@ def read_dicom(folder, progress, series=None):
     return Volume(values, spacing, meta, direction)
 
 
-def open_dicom(folder, series=None):
+def open_dicom(folder, series=None, run=None):
     """The DICOM series in ``folder`` as a :class:`~voxrender.io._stack.Stack`: its headers are read now, as
     :func:`read_dicom` reads them, its pixels a slab of files at a time.
 
@@ -81,7 +83,7 @@ def open_dicom(folder, series=None):
             stack = _open_multiframe(chosen[0][0])
         stack.meta.update(_beside(aside))
         return stack
-    items, spacing, meta, direction = _slices_placed(folder, chosen, aside)
+    items, spacing, meta, direction = _slices_placed(folder, chosen, aside, run)
     shape = (len(items), int(items[0][1].Rows), int(items[0][1].Columns))
     told = [_told_type(ds) for _, ds in items]
     buffers = {}
@@ -412,10 +414,12 @@ def _multiframe(chosen, folder):
     return True
 
 
-def _slices_placed(folder, chosen, aside):
-    """The slices of a classic series in order, with the volume's spacing, meta and direction, from their headers."""
+def _slices_placed(folder, chosen, aside, run=None):
+    """The slices of a classic series in order (of a series with uneven steps, regular run ``run``, else the
+    longest), with the volume's spacing, meta and direction, from their headers.
+    """
     with _header_values(folder):
-        chosen, spacing_z, sorted_by, direction = _sort_dicom(chosen)
+        chosen, spacing_z, sorted_by, direction = _sort_dicom(chosen, run)
         pixel = _pixel_spacing(chosen[0][1], chosen[0][0])
     first = chosen[0][1]
     for f, ds in chosen:
@@ -775,7 +779,7 @@ def _beside(aside):
 RUN_TOLERANCE = 0.1      # steps within 10 % of the median one make one regular run of slices
 
 
-def _sort_dicom(items):
+def _sort_dicom(items, run=None):
     """Order slices along the slice normal; return (items, slice spacing, how they were sorted, direction).
 
     The direction (see :mod:`voxrender.space.orient`) is known when the slices have ImageOrientationPatient:
@@ -812,11 +816,16 @@ def _sort_dicom(items):
                          "the folder mixes acquisitions: keep one in the folder")
     first = items[0][1]
     fallback = float(getattr(first, "SpacingBetweenSlices", 0) or getattr(first, "SliceThickness", 0) or 1.0)
+    runs = _regular_runs(positions) if how == "ImagePositionPatient" and len(steps) else [(0, len(items))]
+    if run is not None and not 1 <= run <= len(runs):
+        raise InputError(f"run {run} is not one of the series' {len(runs)} regular run{'s' * (len(runs) > 1)} of "
+                         "slices" + (f" (1 to {len(runs)})" if len(runs) > 1 else "; its steps are even"),
+                         parameter="run")
     if how != "ImagePositionPatient" or not len(steps):
         return items, abs(fallback), how, direction
-    first, last = _regular_run(positions)
+    first, last = runs[run - 1] if run is not None else max(runs, key=lambda r: r[1] - r[0])
     if (first, last) != (0, len(items)):
-        warnings.warn(_run_taken(items, positions, first, last), stacklevel=2)
+        warnings.warn(_run_taken(items, positions, runs, (first, last), run is None), stacklevel=2)
         items, steps = items[first:last], steps[first:last - 1]
         if len(steps) == 0:
             return items, abs(fallback), how, direction
@@ -827,33 +836,36 @@ def _sort_dicom(items):
     return items, spacing, how, direction
 
 
-def _regular_run(positions, tolerance=RUN_TOLERANCE):
-    """The slices ``first .. last - 1`` (sorted by position) of the longest run whose steps all lie within
-    ``tolerance`` of the series' median step, the first of the longest when several are as long: where a step
-    differs more (a slice 200 mm from the others, a gap, a second acquisition), the series is split.
+def _regular_runs(positions, tolerance=RUN_TOLERANCE):
+    """The runs ``(first, last)`` (slices ``first .. last - 1``, sorted by position) into which a series falls where
+    a step differs from its median step by more than ``tolerance`` (a slice 200 mm from the others, a gap, a second
+    acquisition); one run of them all when the steps are even.
 
-    >>> _regular_run(np.array([-99.5, 103.0, 104.25, 105.5]))
-    (1, 4)
-    >>> _regular_run(np.array([0.0, 2.0, 4.0, 6.1]))
-    (0, 4)
+    >>> _regular_runs(np.array([-99.5, 103.0, 104.25, 105.5]))
+    [(0, 1), (1, 4)]
+    >>> _regular_runs(np.array([0.0, 2.0, 4.0, 6.1]))
+    [(0, 4)]
     """
     steps = np.diff(positions)
     typical = np.median(steps)
     breaks = np.flatnonzero(np.abs(steps - typical) > max(0.01, tolerance * abs(typical))) + 1
-    starts, ends = np.r_[0, breaks], np.r_[breaks, len(positions)]
-    k = int(np.argmax(ends - starts))
-    return int(starts[k]), int(ends[k])
+    return [(int(a), int(b)) for a, b in zip(np.r_[0, breaks], np.r_[breaks, len(positions)], strict=True)]
 
 
-def _run_taken(items, positions, first, last):
-    """The warning that says which regular run of an uneven series is read, and what is set aside."""
+def _run_taken(items, positions, runs, taken, longest):
+    """The warning that says which regular run of an uneven series is read (the ``longest``, or the one asked
+    for), and what is set aside.
+    """
+    first, last = taken
     aside = [f.name for f, _ in items[:first] + items[last:]]
     shown = ", ".join(aside[:3]) + (" ..." if len(aside) > 3 else "")
     steps = np.diff(positions)
+    which = "the longest regular run" if longest else "regular run"
     return (f"the series' slice steps are uneven ({steps.min():g} to {steps.max():g} mm), so its slices are not one "
-            f"stack: reading the longest regular run, slices {first + 1} to {last} of {len(items)} (at "
-            f"{positions[first]:g} to {positions[last - 1]:g} mm along the slice normal), and setting aside "
-            f"{len(aside)} slice{'s' * (len(aside) > 1)} ({shown}); give a folder of one run to read another")
+            f"stack but {len(runs)} regular runs: reading {which} {runs.index(taken) + 1}, slices {first + 1} to "
+            f"{last} of {len(items)} (at {positions[first]:g} to {positions[last - 1]:g} mm along the slice "
+            f"normal), and setting aside {len(aside)} slice{'s' * (len(aside) > 1)} ({shown}); choose another run "
+            "with --run")
 
 
 def holds_dicom(path):
@@ -861,4 +873,4 @@ def holds_dicom(path):
     return is_dicom(path) if path.is_file() else bool(dicom_files(path))
 
 
-READER = Reader(read_dicom, SUFFIXES, options=("series",), sniff=holds_dicom, open=open_dicom)
+READER = Reader(read_dicom, SUFFIXES, options=("series", "run"), sniff=holds_dicom, open=open_dicom)

@@ -37,12 +37,13 @@ class ReadOptions:
     orientation: str | None = None
     reorient: bool = True
     level: int | None = None
+    run: int | None = None
 
     def read(self, path, progress=None):
         """The :class:`~voxrender.io.Volume` in ``path``, read as these options say."""
         return io.read_volume(path, format=self.format, raw=self.raw, spacing=self.spacing, series=self.series,
                               frame=self.frame, level=self.level, orientation=self.orientation,
-                              reorient=self.reorient, progress=progress)
+                              reorient=self.reorient, progress=progress, run=self.run)
 
 
 @dataclass(frozen=True)

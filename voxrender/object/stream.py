@@ -613,7 +613,7 @@ def stack_of(path, read):
     format = io.detect_format(path, read.raw) if read.format == "auto" else read.format
     return io.open_stack(path, format=read.format, raw=read.raw, spacing=read.spacing, series=read.series,
                          frame=read.frame, level=read.level, orientation=read.orientation,
-                         reorient=read.reorient) if format in _SLABBED else None
+                         reorient=read.reorient, run=read.run) if format in _SLABBED else None
 
 
 @contextlib.contextmanager
