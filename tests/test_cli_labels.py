@@ -405,3 +405,23 @@ def test_a_manifest_labels_column_takes_a_mask_folder(tmp_path, ct_file):
         row = next(csv.DictReader(f))
     volumes = json.loads(row["label_volumes"])
     assert [(v["name"], v["voxels"]) for v in volumes] == [(f"part{k}", int((nested() == k).sum())) for k in (1, 2, 3)]
+
+
+def test_a_label_map_reaching_beyond_its_image_says_how_much_of_each_structure_lies_outside(tmp_path):
+    """A map (nibabel) of slices z 0..19 on a CT of slices z 0..9: the half of each structure beyond the CT is in no
+    picture and no count on the CT's grid; a warning names it, and --labels-out gives it apart."""
+    affine = np.diag([-1.0, -1.0, 1.0, 1.0])                  # RAS, so the LPS axes: x left, y back, z up
+    ct = np.zeros((16, 16, 10), np.int16)                     # x, y, z
+    nib.save(nib.Nifti1Image(ct, affine), tmp_path / "ct.nii.gz")
+    labels = np.zeros((16, 16, 20), np.uint8)
+    labels[2:8, 2:8, :] = 1                                   # 20 slices: 10 inside the CT, 10 beyond it
+    labels[9:14, 9:14, 12:] = 2                               # wholly beyond it
+    labels[9:14, 2:6, 2:6] = 3                                # wholly inside
+    nib.save(nib.Nifti1Image(labels, affine), tmp_path / "labels.nii.gz")
+    result = run("render", tmp_path / "ct.nii.gz", "--labels-from", tmp_path / "labels.nii.gz", "--size", "48",
+                 "--labels-out", tmp_path / "l.json", "-o", tmp_path / "l.png")
+    assert result.exit_code == 0, result.output
+    assert "label 1: 50 % (0.36 mL); label 2: 100 % (0.2 mL)" in result.stderr
+    listed = {v["label"]: v for v in json.loads((tmp_path / "l.json").read_text())["labels"]}
+    assert listed[1]["ml"] == pytest.approx(0.36) and listed[1]["ml_outside_image"] == pytest.approx(0.36)
+    assert 2 not in listed and "ml_outside_image" not in listed[3]

@@ -121,6 +121,8 @@ class Painter:
 def code_counts(codes):
     """``{code: voxels}`` of the nonzero codes of a label map, a few slices at a time (no int64 copy of it)."""
     codes = np.atleast_1d(codes)
+    if not codes.size:
+        return {}
     total = np.zeros(1, np.int64)
     step = max(1, (1 << 24) // max(1, codes[0].size))
     for start in range(0, len(codes), step):

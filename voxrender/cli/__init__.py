@@ -758,7 +758,7 @@ def _describe_pairing(volume, source, crop):
     labels = read_labels(source, volume)
     relation = relate(labels.shape, patient_affine(labels), volume.shape, patient_affine(volume))
     lines = relation.lines("label map", "image", labels.meta.get("orientation"), volume.meta.get("orientation"))
-    paired = replace(volume, values=on_image_grid(labels, volume, source),
+    paired = replace(volume, values=on_image_grid(labels, volume, source)[0],
                      meta={**labels.meta, "source": str(source)})
     return {"label_map": str(source), "grids": lines,
             **_describe_labels(paired, prep.crop(paired.values, crop), source)}

@@ -270,7 +270,10 @@ def _encode_labels(volume, read, prepare, meta, progress):
         raise InputError("a label map is selected by its labels, not by a threshold: drop it, or give the label map "
                          "as the labels of the image it was made from", parameter="threshold")
     if selection.source is not None:
-        label_volume = replace(label_volume, values=on_image_grid(label_volume, volume, label_name))
+        values, lost = on_image_grid(label_volume, volume, label_name)
+        label_volume = replace(label_volume, values=values)
+        if lost:
+            meta["label_ml_outside"] = lost
         meta["label_source"] = str(label_name)
     if label_volume.meta.get("overlaps"):          # a folder of masks: the pairs its reader gave to one label
         meta["overlaps"] = label_volume.meta["overlaps"]
@@ -357,21 +360,43 @@ def _segmentation_in(folder, image):
 def on_image_grid(label_volume, volume, label_name):
     """The label map's values on the image's grid: placed by patient position (:func:`voxrender.space.grids.pair`) when
     both say where they lie; taken as they are when one does not (an array, a ``.npy``, headerless slices) and
-    the shapes agree.
+    the shapes agree.  Also ``{label: mL}`` of each structure's own voxels that lie outside the image, which
+    placing it loses, with one warning that names them (a SEG with a frame on a slice set aside).
     """
-    from ..space.grids import pair
+    from ..space.grids import pair, patient_affine, relate
 
     placed = [v.direction is not None and "origin" in v.meta for v in (label_volume, volume)]
     if all(placed):
-        return pair(label_volume, volume, f"the label map {label_name}",
-                    partial=label_volume.meta.get("format") == "seg")        # a SEG keeps only frames it needs
+        values = pair(label_volume, volume, f"the label map {label_name}",
+                      partial=label_volume.meta.get("format") == "seg")        # a SEG keeps only frames it needs
+        relation = relate(label_volume.shape, patient_affine(label_volume), volume.shape, patient_affine(volume))
+        return values, ({} if relation.overlap >= 1 else _lost(label_volume, volume, label_name))
     if label_volume.shape != volume.shape:
         unplaced = "the label map" if not placed[0] else "the image"
         raise InputError(f"the label map {label_name} has shape {label_volume.shape[::-1]} (x, y, z) but the image "
                          f"has {volume.shape[::-1]}, and {unplaced} does not say where it lies in the patient, so "
                          "they cannot be paired by position; give the label map made from this image",
                          parameter="labels_from")
-    return label_volume.values
+    return label_volume.values, {}
+
+
+def _lost(label_volume, volume, label_name):
+    """``{label: mL}`` of the structures' own voxels outside the image, warned of."""
+    from ..space.grids import outside
+
+    sets = label_volume.meta.get("label_sets") or {}
+    beyond = label_sets.structure_counts(outside(label_volume, volume), sets)
+    if not beyond:
+        return {}
+    whole = label_sets.structure_counts(label_volume.values, sets)
+    table = label_volume.meta.get("label_table") or {}
+    lost = {label: label_sets.millilitres(n, label_volume.spacing) for label, n in beyond.items()}
+    said = "; ".join(f"{(table.get(str(k)) or {}).get('name') or f'label {k}'}: {100 * n / whole[k]:.3g} % "
+                     f"({lost[k]:g} mL)" for k, n in beyond.items())
+    warnings.warn(f"the label map {label_name} reaches beyond the image, and of its structures this much lies "
+                  f"outside it, where no picture shows it and no count on the image's grid holds it: {said}",
+                  stacklevel=3)
+    return {str(k): v for k, v in lost.items()}
 
 
 def _grey_normals(volume, mask, info, prepare):

@@ -268,7 +268,7 @@ def _label_rows(segments, table, pixels=None):
     own = segments.meta.get("label_voxels")           # each structure's own voxels on the image's grid
     voxels = {int(k): v for k, v in own.items()} if own else segments.label_voxels()
     return label_list({k: v for k, v in table.items() if voxels.get(k)}, voxels, segments.spacing, pixels,
-                      segments.meta.get("label_ml"))
+                      segments.meta.get("label_ml"), segments.meta.get("label_ml_outside"))
 
 
 def _marks_apply(options, meta):

@@ -109,11 +109,13 @@ def label_pixels(labels):
     return {int(v): int(c) for v, c in zip(values, counts, strict=True)}
 
 
-def label_list(table, voxels, spacing, pixels=None, ml=None):
+def label_list(table, voxels, spacing, pixels=None, ml=None, outside=None):
     """The rows a label list shows (``info``, ``--labels-out``, a batch's summary): each label of ``table``
     (``{label: (name, (r, g, b))}``) with its voxels, its volume in mL and, of a picture, the ``pixels`` it shows.
     The volume is ``ml[str(label)]`` when given (a label map's own count on its own grid, which resampling to cubic
     voxels would change by a slice's worth at each end), else ``voxels`` times the voxel volume of ``spacing``.
+    A structure partly outside the image (``outside``, ``{str(label): mL}``) also gives ``ml_outside_image``: the
+    volume it has beyond the image, which its ``ml`` (on the image's grid) does not hold.
 
     >>> label_list({2: ("liver", (40, 140, 40))}, {2: 1500}, (1.0, 1.0, 2.0), pixels={"2": 300})
     [{'label': 2, 'name': 'liver', 'colour': [40, 140, 40], 'voxels': 1500, 'ml': 3.0, 'pixels': 300}]
@@ -123,6 +125,8 @@ def label_list(table, voxels, spacing, pixels=None, ml=None):
         count = int(voxels.get(label, 0))
         row = {"label": int(label), "name": name, "colour": [int(c) for c in colour], "voxels": count,
                "ml": (ml or {}).get(str(label), millilitres(count, spacing))}
+        if (outside or {}).get(str(label)):
+            row["ml_outside_image"] = outside[str(label)]
         if pixels is not None:
             row["pixels"] = int(pixels.get(str(label), 0))
         rows.append(row)

@@ -242,7 +242,7 @@ def load_study(path, read=None, prepare=None, progress=None, encode=True):
             found = selection.source if isinstance(selection.source, io.Volume) else \
                 read_labels(selection.source, volume, read)
             where = {"origin": volume.meta["origin"]} if "origin" in volume.meta else {}   # now the image's grid
-            labels_volume = replace(volume, values=on_image_grid(found, volume, name),
+            labels_volume = replace(volume, values=on_image_grid(found, volume, name)[0],
                                     meta={**found.meta, "source": str(name), **where})
             prepare = replace(prepare, labels=replace(selection, source=labels_volume))
         codes = prep.crop(labels_volume.values, prepare.crop)

@@ -256,6 +256,31 @@ def pair(label_volume, image_volume, label_name="the label map", *, image_name="
     return resample_nearest(label_volume.values, source_affine, image_volume.shape, target_affine)
 
 
+def outside(label_volume, image_volume):
+    """The values of ``label_volume``'s nonzero voxels whose centres lie outside ``image_volume``'s extent, as one
+    1-D array (a slice of the label map at a time): what placing it on the image's grid loses.
+
+    >>> from voxrender.io import Volume
+    >>> image = Volume(np.zeros((2, 4, 4), np.int16), (1.0, 1.0, 1.0), {"origin": [0.0, 0.0, 0.0]})
+    >>> labels = Volume(np.full((4, 1, 1), 7, np.uint8), (1.0, 1.0, 1.0), {"origin": [1.0, 1.0, 0.0]})
+    >>> outside(labels, image).tolist()                  # the label map's slices z 2 and 3 lie beyond the image
+    [7, 7]
+    """
+    to_target = np.linalg.solve(patient_affine(image_volume), patient_affine(label_volume))
+    sizes = np.asarray(image_volume.shape[::-1], dtype=float)      # x, y, z
+    found = []
+    for z in range(label_volume.shape[0]):
+        plane = np.asarray(label_volume.values[z])
+        rows, columns = np.nonzero(plane)
+        if not len(rows):
+            continue
+        points = np.stack([columns, rows, np.full(len(rows), z)]).astype(float)
+        index = to_target[:3, :3] @ points + to_target[:3, 3:]
+        inside = _within(index[0], sizes[0]) & _within(index[1], sizes[1]) & _within(index[2], sizes[2])
+        found.append(plane[rows[~inside], columns[~inside]])
+    return np.concatenate(found) if found else np.zeros(0, np.asarray(label_volume.values[:0]).dtype)
+
+
 def extent(shape, affine):
     """The bounding box in patient space of a grid's voxel cubes: ``(low, high)``, each (x, y, z) in mm.
 
