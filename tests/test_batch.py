@@ -77,6 +77,26 @@ def test_manifests(tmp_path, stacks):
         batch.read_manifest(tmp_path / "bad.csv")
 
 
+def test_a_manifest_row_keeps_its_labels_with_its_threshold_and_takes_a_name(tmp_path, stacks):
+    """A row with both labels and a threshold lost its labels; the same CT once per model needs a name a row."""
+    np.save(tmp_path / "in" / "seg.npy", (np.load(stacks / "ball.npy") > 0).astype(np.uint8))
+    (tmp_path / "m.csv").write_text("input,name,labels,threshold\n"
+                                    "in/ball.npy,model-a,in/seg.npy,500\n"
+                                    "in/ball.npy,model-b,in/seg.npy,\n"
+                                    "in/box.npy,,,\n")
+    made = batch.items_from([], batch.read_manifest(tmp_path / "m.csv"), ReadOptions(), PrepOptions(threshold=700),
+                            RenderOptions(), batch.parse_views(), batch.Patterns())
+    assert [item.name for item in made] == ["model-a", "model-b", "box"]
+    assert made[0].prepare.labels.source == tmp_path / "in" / "seg.npy" and made[0].prepare.threshold == 500
+    assert made[1].prepare.labels is not None and made[1].prepare.threshold == 700
+    for names, said in [(("a", "a"), "two studies are named 'a'"), (("../up", "b"), "not a file name of its own"),
+                        ((".hidden", "b"), "not a file name of its own")]:
+        rows = [{"input": str(stacks / "ball.npy"), "name": n} for n in names]
+        with pytest.raises(InputError, match=said):
+            batch.items_from([], rows, ReadOptions(), PrepOptions(), RenderOptions(), batch.parse_views(),
+                             batch.Patterns())
+
+
 def test_batch_renders_reports_failures_and_resumes(tmp_path, stacks):
     out = tmp_path / "out"
     work = items([stacks / "ball.npy", stacks / "broken.npy", stacks / "box.npy"], size=(40, 48))

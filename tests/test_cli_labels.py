@@ -135,7 +135,13 @@ def test_a_ct_with_its_label_map(tmp_path, ct_file, label_file):
     result = run("render", ct_file, "--labels-from", label_file, "--threshold", "1200", "--size", "48",
                  "--labels-out", tmp_path / "dense.json", "-o", tmp_path / "dense.png")
     assert result.exit_code == 0, result.output
-    assert [v["label"] for v in json.loads((tmp_path / "dense.json").read_text())["labels"]] == [3]
+    dense = json.loads((tmp_path / "dense.json").read_text())["labels"]
+    every = json.loads((tmp_path / "all.json").read_text())["labels"]
+    # the volumes are each label's own, as without the threshold; the picture shows only what passes it, and says so
+    assert [(v["label"], v["voxels"], v["ml"]) for v in dense] == [(v["label"], v["voxels"], v["ml"]) for v in every]
+    assert [v["label"] for v in dense if v["pixels"]] == [3]
+    assert all(v["shown"] == "the picture shows it within the threshold 1200" for v in dense)
+    assert all("shown" not in v for v in every)
 
 
 def test_windows_and_presets(tmp_path, ct_file):

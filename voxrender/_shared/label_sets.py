@@ -29,14 +29,36 @@ Then, on the grid where they are used:
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from ..errors import InputError
 
 RULE = ("each structure keeps its own voxels; where several share a voxel, the pictures show the smallest (the most "
         "specific)")
-# The names of the structure that holds the patient's whole outline (compared without case, spaces, _ or -).
+# The names of the structure that holds the patient's whole outline (compared by label_key).
 ENVELOPE_NAMES = frozenset({"body", "external", "bodyoutline", "outercontour"})
+_SIDES = ("left", "right")
+
+
+def label_key(name, label=None):
+    """The identity of a label across files and tools: its name without case, spaces, hyphens, underscores or
+    dots, a side given first moved last (``Left kidney``, ``kidney_left`` and ``kidney-Left`` are one structure);
+    a label without a name (``None``, empty, or ``"label N"``) is ``#N``, which matches only other unnamed ones.
+
+    >>> label_key("hip right") == label_key("hip_right") == label_key("Right-Hip")
+    True
+    >>> label_key("label 3", 3), label_key("", 7), label_key("vertebrae_L1")
+    ('#3', '#7', 'vertebrael1')
+    """
+    text = str(name or "").strip().lower()
+    if label is not None and (not text or text == f"label {label}"):
+        return f"#{int(label)}"
+    words = [w for w in re.split(r"[\s_\-.]+", text) if w]
+    if len(words) > 1 and words[0] in _SIDES:
+        words = words[1:] + words[:1]
+    return "".join(words)
 
 
 def envelopes(meta):
@@ -48,8 +70,7 @@ def envelopes(meta):
     """
     found = {int(k) for k in meta.get("envelopes") or []}
     for label, entry in (meta.get("label_table") or {}).items():
-        name = "".join(c for c in str((entry or {}).get("name") or "").lower() if c.isalnum())
-        if name in ENVELOPE_NAMES:
+        if label_key((entry or {}).get("name")) in ENVELOPE_NAMES:
             found.add(int(label))
     return sorted(found)
 

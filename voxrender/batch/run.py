@@ -241,12 +241,31 @@ def _unique_names(paths):
     return names
 
 
+def _names(rows):
+    """Each row's study name: its ``name`` column when given (the same CT once per model), else one made from its
+    input (:func:`_unique_names`); a name is a file name of its own, and no two are the same.
+    """
+    given = [str(row.get("name") or "").strip() for row in rows]
+    made = _unique_names([row["input"] for row in rows])
+    names = [g or m for g, m in zip(given, made, strict=True)]
+    for name, row in zip(given, rows, strict=True):
+        if name and (name in (".", "..") or any(c in name for c in '/\\\0') or name.startswith(".")):
+            raise InputError(f"{row['input']}: the name {name!r} is not a file name of its own; give one without "
+                             "slashes that does not begin with a dot", parameter="manifest")
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise InputError(f"two studies are named {twice[0]!r}; give each row of the manifest a name of its own "
+                         "(its 'name' column)", parameter="manifest")
+    return names
+
+
 def read_manifest(path):
     """Rows of a manifest: CSV with a header, or TOML with ``[[input]]`` tables.
 
-    Columns (all but ``input`` optional): ``input``, ``labels`` (a label map of the input: the picture shows
-    its labels), ``threshold``, ``views`` (preset names and ``a,b,g`` triples separated by ``;``), ``method``,
-    ``output`` (a pattern).  Relative inputs and label maps are taken from the manifest's folder.
+    Columns (all but ``input`` optional): ``input``, ``name`` (the study's name in file names and on the page;
+    default: from its input), ``labels`` (a label map of the input: the picture shows its labels), ``threshold``
+    (with ``labels``, it also selects the input's values), ``views`` (preset names and ``a,b,g`` triples separated
+    by ``;``), ``method``, ``output`` (a pattern).  Relative inputs and label maps are taken from the manifest's folder.
     """
     path = Path(path)
     if not path.is_file():
@@ -285,7 +304,7 @@ def items_from(inputs, manifest_rows, read, prepare, options, views, patterns, p
     rows = [{"input": p} for p in inputs] + list(manifest_rows)
     if not rows:
         raise InputError("no inputs: give paths, globs or a manifest", parameter="inputs")
-    names = _unique_names([row["input"] for row in rows])
+    names = _names(rows)
     items = []
     for row, name in zip(rows, names, strict=True):
         try:
@@ -299,8 +318,8 @@ def items_from(inputs, manifest_rows, read, prepare, options, views, patterns, p
                 chosen = prepare.labels.chosen if prepare.labels else None
                 item_prepare = replace(prepare, labels=LabelSelection(chosen, True, Path(str(row["labels"]))),
                                        threshold=None if prepare.threshold is otsu_threshold else prepare.threshold)
-            if str(row.get("threshold") or "").strip():
-                item_prepare = replace(prepare, threshold=parse.threshold(str(row["threshold"])))
+            if str(row.get("threshold") or "").strip():        # on top of the row's labels, when it gives both
+                item_prepare = replace(item_prepare, threshold=parse.threshold(str(row["threshold"])))
             item_options = options
             if str(row.get("method") or "").strip():
                 item_options = replace(options, method=str(row["method"]).strip())
@@ -537,7 +556,8 @@ def _render_task(item, view, index, segments_path, out_dir, encode_seconds):
         return _summary_row(item, view, outputs.picture, "failed", f"internal error: {type(exc).__name__}: {exc}")
     return _summary_row(item, view, outputs.picture, "ok", stats=json.dumps(result.image.stats, default=float),
                        labels=len(result.image.stats.get("label_pixels", {})) if result.labels is not None else "",
-                       label_volumes=json.dumps([{k: row[k] for k in ("label", "name", "colour", "voxels", "ml")}
+                       label_volumes=json.dumps([{k: row[k] for k in ("label", "name", "colour", "voxels", "ml",
+                                                                      "shown") if k in row}
                                                  for row in result.label_rows]) if result.label_rows else "",
                        overlaps=json.dumps(encoded.segments.meta.get("overlaps") or []),
                        load_s=encode_seconds.get("load", 0.0), prepare_s=encode_seconds.get("prepare", 0.0),

@@ -299,10 +299,15 @@ def _encode_labels(volume, read, prepare, meta, progress):
         from skimage.morphology import remove_small_objects
 
         labels[~remove_small_objects(labels > 0, max_size=prepare.min_object - 1, connectivity=3)] = 0
-    if prepare.threshold is None and prepare.min_object <= 1:   # the labels as given: their mL on their own grid
-        meta["label_ml"] = {str(label): label_sets.millilitres(count, volume.spacing)
-                            for label, count in info["voxels"].items()}
-        meta["label_voxels"] = {str(label): count for label, count in info["voxels"].items()}
+    # each label's own voxels, in mL on the image's grid, as given: what every table counts, whatever the picture
+    # keeps of them (a threshold or a speck size says so in the rows)
+    meta["label_ml"] = {str(label): label_sets.millilitres(count, volume.spacing)
+                        for label, count in info["voxels"].items()}
+    meta["label_voxels"] = {str(label): count for label, count in info["voxels"].items()}
+    within = [f"threshold {_said(meta['threshold'])}" if "threshold" in meta else "",
+              f"pieces of {prepare.min_object} voxels or more" if prepare.min_object > 1 else ""]
+    if any(within):
+        meta["labels_shown"] = "the picture shows it within the " + " and ".join(w for w in within if w)
     if selection.separate:
         table = label_volume.meta.get("label_table")
         if table:
@@ -355,6 +360,11 @@ def _segmentation_in(folder, image):
         raise InputError(f"{folder} holds {len(found)} segmentations ({', '.join(f.name for f in found[:4])}); "
                          "give the one to show")
     return found[0]
+
+
+def _said(threshold):
+    """A threshold as the rows say it: ``300`` or ``[-300, 300]``."""
+    return f"{threshold:g}" if isinstance(threshold, (int, float)) else str(threshold)
 
 
 def on_image_grid(label_volume, volume, label_name):

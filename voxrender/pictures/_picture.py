@@ -267,8 +267,10 @@ def _label_rows(segments, table, pixels=None):
 
     own = segments.meta.get("label_voxels")           # each structure's own voxels on the image's grid
     voxels = {int(k): v for k, v in own.items()} if own else segments.label_voxels()
-    return label_list({k: v for k, v in table.items() if voxels.get(k)}, voxels, segments.spacing, pixels,
+    rows = label_list({k: v for k, v in table.items() if voxels.get(k)}, voxels, segments.spacing, pixels,
                       segments.meta.get("label_ml"), segments.meta.get("label_ml_outside"))
+    shown = segments.meta.get("labels_shown")         # the volumes are the labels' own; the picture keeps less
+    return [{**row, "shown": shown} for row in rows] if shown else rows
 
 
 def _marks_apply(options, meta):

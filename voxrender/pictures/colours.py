@@ -184,12 +184,12 @@ def _anatomy():
 
 
 def _anatomy_key(name):
-    """A name as the anatomy table is searched: lower case, words joined by ``_``, a ``left_``/``right_`` prefix
-    moved to the end (``Left kidney`` and ``kidney_left`` are one key).
+    """A name as the anatomy table is searched: :func:`voxrender._shared.label_sets.label_key`, the one rule that
+    also matches labels across a batch (``Left kidney`` and ``kidney_left`` are one key).
     """
-    key = re.sub(r"[\s\-.]+", "_", str(name).strip().lower())
-    side = re.match(r"(left|right)_(.+)", key)
-    return f"{side[2]}_{side[1]}" if side else key
+    from .._shared.label_sets import label_key
+
+    return label_key(name)
 
 
 def anatomy_colour(name):

@@ -58,7 +58,9 @@ class StudyRow:
 
 
 def missing_labels(studies):
-    """The labels each study lacks that other studies of the batch have, by name.
+    """The labels each study lacks that other studies of the batch have, by name as
+    :func:`voxrender._shared.label_sets.label_key` matches them (``hip right`` is ``hip_right``; unnamed labels by
+    number, among themselves).
 
     A study lacks a label when it has none of that name, or has it with 0 voxels.  Failed studies, and studies
     without labels (a CT alone), are left out on both sides: they show no labels to compare.
@@ -81,14 +83,23 @@ def missing_labels(studies):
     ...                 StudyRow("b", "b.nrrd", labels=[liver, {**spleen, "voxels": 0}]),
     ...                 StudyRow("c", "c.nrrd", error="cannot read c.nrrd"), StudyRow("d", "d.nrrd")])
     {'b': ['spleen']}
+    >>> missing_labels([StudyRow("seg", "s.dcm", labels=[{**liver, "name": "hip right"}]),      # one structure
+    ...                 StudyRow("masks", "m/", labels=[{**liver, "name": "hip_right"}])])
+    {}
     """
+    from .._shared.label_sets import label_key
+
     studies = [study for study in studies if not study.error and study.labels]
-    present = {study.name: [label["name"] for label in study.labels if label["voxels"] > 0] for study in studies}
-    seen = list(dict.fromkeys(name for names in present.values() for name in names))
+    present = {study.name: {label_key(label["name"], label["label"]): label["name"] for label in study.labels
+                            if label["voxels"] > 0} for study in studies}
+    seen = {}                                           # key -> the name it first had in the batch
+    for names in present.values():
+        for key, name in names.items():
+            seen.setdefault(key, name)
     missing = {}
     for study in studies:
-        others = {name for other, names in present.items() if other != study.name for name in names}
-        lacking = [name for name in seen if name in others and name not in present[study.name]]
+        others = {key for other, names in present.items() if other != study.name for key in names}
+        lacking = [name for key, name in seen.items() if key in others and key not in present[study.name]]
         if lacking:
             missing[study.name] = lacking
     return missing
@@ -180,16 +191,19 @@ def _row(number, study, missing):
                      f'tabindex="0" draggable="false" alt="turntable of {_text(study.name)}">'
                      f'<figcaption>{len(frames)} frames, move across</figcaption></figure>')
 
-    labels = []
+    from .._shared.label_sets import label_key
+
+    labels, lacking = [], {label_key(name) for name in missing}
     for label in study.labels:
         red, green, blue = (int(c) for c in label.get("colour") or (128, 128, 128))
-        empty = ' class="missing"' if label["name"] in missing else ""
+        empty = ' class="missing"' if label_key(label["name"], label["label"]) in lacking else ""
+        within = f' <span class="note">({_text(label["shown"])})</span>' if label.get("shown") else ""
         labels.append(f'<tr{empty}><td><span class="swatch" style="background:rgb({red},{green},{blue})"></span>'
-                      f'{_text(label["name"])}</td><td class="n">{int(label["voxels"]):,}</td>'
+                      f'{_text(label["name"])}{within}</td><td class="n">{int(label["voxels"]):,}</td>'
                       f'<td class="n">{float(label["ml"]):,.1f} mL</td></tr>')
-    present = {label["name"] for label in study.labels}
+    present = {label_key(label["name"], label["label"]) for label in study.labels}
     labels += [f'<tr class="missing"><td>{_text(name)}</td><td colspan="2">missing</td></tr>'
-               for name in missing if name not in present]
+               for name in missing if label_key(name) not in present]
     labels += [f'<tr class="overlap"><td colspan="3">overlap: {" / ".join(_text(n) for n in overlap["names"])}, '
                 f'{int(overlap["voxels"]):,} voxels</td></tr>' for overlap in study.overlaps]
     label_table = f'<table class="labels">{"".join(labels)}</table>' if labels else ""
