@@ -47,6 +47,7 @@ import click
 import numpy as np
 
 from benchmarks import big_stack, compile_bytecode, studies
+from benchmarks.agreement import bench_agreement
 from benchmarks.masks import bench_mask_folder
 from benchmarks.studies import HERE
 from voxrender import io
@@ -562,6 +563,16 @@ def markdown(results):
                       f"MB), as TotalSegmentator writes them: {m['mask_folder_s']:.1f} s; "
                       f"the same labels as one `.nii.gz` ({m['one_file_mb']:.0f} MB): {m['one_file_s']:.2f} s "
                       f"({m['ratio']:.0f}x; medians, same run)", ""]
+    if results.get("agreement"):
+        a = results["agreement"]
+        if "skipped" in a:
+            lines[2:2] = [f"Agreement with a reference: skipped ({a['skipped']})", ""]
+        else:
+            grid = " x ".join(map(str, a["grid_xyz"]))
+            lines[2:2] = [f"Agreement with a reference ({a['structures']} structures of vhf_head, {grid}; Dice, HD95, "
+                          f"surface Dice at 2 mm): voxrender {a['voxrender_s']:.2f} s, DeepMind's surface-distance "
+                          f"{a['surface_distance_s']:.2f} s ({a['speedup']:.1f}x; medians, same run; the largest "
+                          f"difference of any metric {a['largest_difference']:.2g})", ""]
     lines += _views_table(results["views"], methods + peers)
     if results.get("stages"):
         stages = results["stages"]
@@ -748,6 +759,7 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True, big=True):
             "repeat": repeat, "read_s": read_s, "encode": encode, "vtk_version": vtk_version,
             "read": bench_read(path, volume, max(1, repeat // 2)),
             "mask_folder": bench_mask_folder(max(1, repeat // 2)),
+            "agreement": bench_agreement(path, max(1, repeat // 2)),
             "views": bench_views(encoded, repeat, peer=peer),
             "skin": {"voxels": skin.segments.voxel_count, "segments": skin.segments.segment_count,
                      "views": bench_views(skin, repeat, views=PAPER_VIEWS)},

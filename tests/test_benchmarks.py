@@ -43,8 +43,11 @@ def test_markdown_report(tmp_path):
                "scaling": bench.bench_scaling(repeat=1, sizes=(8, 10)),
                "projection": bench.bench_projection(np.arange(120, dtype=np.int16).reshape(4, 5, 6), 1, size=8),
                "raycast": bench.bench_raycast(1, {"shell": (segments.encode(bench.thin_shell(24, 9.0)),
-                                                             View(30, 10, 0, (32, 32), 1.2))})}
+                                                             View(30, 10, 0, (32, 32), 1.2))}),
+               "agreement": {"grid_xyz": [512, 512, 234], "structures": 3, "voxrender_s": 0.5,
+                             "surface_distance_s": 6.0, "speedup": 12.0, "largest_difference": 0.0}}
     text = bench.markdown(results)
+    assert "voxrender 0.50 s, DeepMind's surface-distance 6.00 s (12.0x" in text
     assert "| .nii.gz | 17.0 | 0.25 |" in text
     assert "| 1 | 2 |" in text and "fitted exponent" in text and "peers" in text and "| shell | adaptive |" in text
     assert "| gradient | 0.001 | 0.100 | 0.020 | 0.002 | 0.123 | 0.246 | 0.50 |" in text
@@ -181,3 +184,15 @@ def test_batch_stages_from_a_summary(tmp_path):
                        "c,v1,failed,,,,,\n")
     stages = studies.batch_stages(summary)
     assert stages == pytest.approx({"load": 2.0, "prepare": 3.0, "render": 0.2, "shade": 0.2, "write": 0.2})
+
+
+def test_agreement_section_runs_small_and_agrees_with_surface_distance(tmp_path):
+    pytest.importorskip("surface_distance", reason="surface-distance is a test dependency")
+    from benchmarks.agreement import bench_agreement
+
+    zz, yy, xx = np.mgrid[:24, :28, :32]
+    radius = np.sqrt((xx - 16) ** 2 + (yy - 14) ** 2 + (zz - 12) ** 2)
+    ct = np.select([radius < 5, radius < 8, radius < 11], [-900, 500, 40], -1000).astype(np.int16)   # air in bone
+    np.save(tmp_path / "head.npy", ct)
+    result = bench_agreement(tmp_path / "head.npy", 1)
+    assert result["structures"] == 3 and result["largest_difference"] < 1e-9 and result["speedup"] > 0

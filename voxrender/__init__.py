@@ -58,6 +58,7 @@ _PUBLIC = {
     "SliceOptions": ".qc.qc",
     "slice_pictures": ".qc.qc",
     "qc_sheet": ".qc.qc",
+    "agreement": ".review.agreement",
 }
 
 __all__ = ["__version__", *_PUBLIC]

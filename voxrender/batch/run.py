@@ -45,6 +45,7 @@ from .. import __version__
 from .._render import framing_box, method_record
 from .._shared.executors import executor, why_died
 from .._shared.files import atomic_output, check_folder_writable, remove_partials
+from .._shared.text import from_spreadsheet_cell, spreadsheet_cell
 from ..errors import InputError
 from ..object.pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
 from ..object.prep import LabelSelection, otsu_threshold
@@ -951,28 +952,3 @@ def _write_summary(path, rows):
         writer.writeheader()
         for row in rows:
             writer.writerow({k: spreadsheet_cell(f"{v:.4f}" if isinstance(v, float) else v) for k, v in row.items()})
-
-
-FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")     # what a spreadsheet runs as a formula (OWASP's CSV injection)
-
-
-def spreadsheet_cell(value):
-    """``value`` as a CSV cell a spreadsheet shows and does not run: text that begins like a formula is prefixed with
-    a quote, as OWASP advises; numbers, negative ones too, are left as they are.  :func:`from_spreadsheet_cell`
-    undoes it.
-
-    >>> spreadsheet_cell("=1+2"), spreadsheet_cell("@SUM(A1)"), spreadsheet_cell("-0.5000"), spreadsheet_cell("liver")
-    ("'=1+2", "'@SUM(A1)", '-0.5000', 'liver')
-    """
-    if not isinstance(value, str) or not value.startswith(FORMULA_STARTS):
-        return value
-    try:
-        float(value)
-        return value
-    except ValueError:
-        return "'" + value
-
-
-def from_spreadsheet_cell(value):
-    """A cell :func:`spreadsheet_cell` wrote, as it was."""
-    return value[1:] if isinstance(value, str) and value[:1] == "'" and value[1:2] in FORMULA_STARTS else value

@@ -585,6 +585,50 @@ def slices_command(input_path, output_path, size, colour_table, legend, dicom, *
     click.echo(f"{output_path}: {len(rows)} row{'s' * (len(rows) > 1)} of {', '.join(slice_options.planes)}")
 
 
+@main.command("agreement")
+@_input_options
+@click.option("--labels-from", required=True, type=click.Path(path_type=Path), metavar="TEST",
+              help="The segmentation to judge: a label map, a folder of masks, a DICOM SEG or RTSTRUCT of INPUT.")
+@click.option("--reference", required=True, type=click.Path(path_type=Path), metavar="REF",
+              help="The segmentation it is held to, of any of those kinds; each is placed on INPUT by position.")
+@click.option("-o", "--output", "output_path", required=True, type=click.Path(path_type=Path),
+              help="PNG to write: the worst structures' slices, both / test only / reference only, and the table.")
+@click.option("--metrics-out", type=click.Path(path_type=Path), metavar="FILE.csv",
+              help="Also the metrics, a structure a row: Dice, NSD, HD95, ASSD, volumes, pieces.")
+@click.option("--tolerance-mm", default=2.0, show_default=True, type=click.FloatRange(0),
+              help="The normalised surface Dice's tolerance.")
+@click.option("--size", default="256", show_default=True, metavar="N|WxH", help="Each slice's picture, in pixels.")
+@click.option("--worst", default=4, show_default=True, type=click.IntRange(1), metavar="N",
+              help="How many structures, the worst first, the picture shows slices of.")
+def agreement_command(input_path, labels_from, reference, output_path, metrics_out, tolerance_mm, size, worst,
+                      **options):
+    """Measure how the segmentation --labels-from agrees with --reference on INPUT, a structure at a time.
+
+    Structures are matched by name (case, spaces, hyphens and underscores aside; 'hip right' is 'hip_right'),
+    unnamed ones by number. Per structure: Dice, the normalised surface Dice at --tolerance-mm, HD95 and ASSD in mm
+    (surface elements weighted by area, as DeepMind's surface-distance), both volumes and their difference, and
+    the pieces of each. A structure on one side only is listed with Dice 0.
+    """
+    from ..review.agreement import Comparison, write_metrics
+
+    _check_output_paths({"picture": output_path, "metrics_out": metrics_out})
+    comparison = Comparison(input_path, labels_from, reference, _read_options(options))
+    rows = comparison.metrics(tolerance_mm)
+    picture_rgb = comparison.picture(rows, parse.size(size), worst)
+    if metrics_out is not None:
+        write_metrics(metrics_out, rows)
+    output.write_png(output_path, picture_rgb)
+    one_sided = [row["name"] for row in rows if row["present"] != "both"]
+    if one_sided:
+        sides = [", ".join(sorted(s[1] for s in side.values())) or "none" for side in comparison.structures]
+        click.echo(f"warning: {len(one_sided)} structure{'s' * (len(one_sided) > 1)} on one side only "
+                   f"({', '.join(one_sided[:6])}{' ...' if len(one_sided) > 6 else ''}); the test holds "
+                   f"{sides[0]}; the reference holds {sides[1]}", err=True)
+    worst_row = rows[0]
+    click.echo(f"{output_path}: {len(rows)} structures; the worst, {worst_row['name']}, has Dice "
+               f"{worst_row['dice']:.3f}" + (f"; metrics in {metrics_out}" if metrics_out else ""))
+
+
 @main.command("encode")
 @_input_options
 @_prep_options_decorator

@@ -73,6 +73,27 @@ def write_json(path, data):
         tmp.write_text(json.dumps(data, indent=2, default=float))
 
 
+def write_csv(path, columns, rows):
+    """Write ``rows`` (dicts) under ``columns`` to ``path`` as CSV, atomically: floats to 6 significant digits,
+    ``None`` and NaN as empty cells, and text that begins like a formula quoted (``_shared.text.spreadsheet_cell``).
+    """
+    import csv
+    import math
+
+    from .._shared.text import spreadsheet_cell
+
+    def cell(value):
+        if value is None or (isinstance(value, float) and math.isnan(value)):
+            return ""
+        return f"{value:.6g}" if isinstance(value, float) else spreadsheet_cell(value)
+
+    with atomic_output(path) as tmp, open(tmp, "w", newline="") as f:
+        writer = csv.DictWriter(f, columns, extrasaction="ignore")
+        writer.writeheader()
+        for row in rows:
+            writer.writerow({k: cell(row.get(k)) for k in columns})
+
+
 def write_slices(values, folder):
     """Write ``values[z, y, x]`` (uint16) as 16-bit PNG slices ``slice_000.png`` ... into ``folder``.
 

@@ -1,0 +1,134 @@
+"""voxrender.review: agreement with a reference, held to DeepMind's surface-distance on the same masks."""
+
+import warnings
+
+import nibabel as nib
+import numpy as np
+import pytest
+from scipy import ndimage
+
+from voxrender.errors import InputError
+from voxrender.io import Volume
+from voxrender.review.agreement import agreement
+from voxrender.review.surfaces import dice, surface_distances, surfel_areas
+
+SPACING = (0.7, 0.9, 2.5)                                        # x, y, z mm: thin in-plane, thick slices
+
+
+def _blob(seed, shape=(30, 40, 50)):
+    rng = np.random.default_rng(seed)
+    return ndimage.gaussian_filter(rng.random(shape), 3) > 0.5
+
+
+def _damaged(mask):
+    """The damages a cohort holds: eroded, shifted, cut, a stray fragment, and two thin ones."""
+    cut, stray, thin = mask.copy(), mask.copy(), np.zeros_like(mask)
+    cut[:, :, mask.shape[2] // 2:] = False
+    stray[2:4, 2:4, 2:4] = True
+    thin[10:12, 5:35, 5:45] = True
+    return {"same": mask, "eroded": ndimage.binary_erosion(mask), "shifted": np.roll(mask, (1, 2, 0), (0, 1, 2)),
+            "cut": cut, "stray": stray, "thin": thin, "thin moved": np.roll(thin, 1, 0)}
+
+
+@pytest.mark.parametrize("damage", ["same", "eroded", "shifted", "cut", "stray", "thin", "thin moved"])
+def test_every_surface_metric_equals_surface_distance_on_the_same_masks(damage):
+    """Dice, HD95, ASSD (the area-weighted mean over both surfaces, from surface-distance's two directed means)
+    and the normalised surface Dice at 1 and 2 mm, within 1e-9: the same definitions, computed apart."""
+    deepmind = pytest.importorskip("surface_distance", reason="surface-distance is a test dependency")
+    reference = _blob(0)
+    test = _damaged(reference)[damage]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")                          # its scipy.ndimage.filters namespace
+        theirs = deepmind.compute_surface_distances(reference, test, SPACING[::-1])    # gt, pred; z, y, x spacing
+    ours = surface_distances(test, reference, SPACING)
+    assert ours.hausdorff() == pytest.approx(deepmind.compute_robust_hausdorff(theirs, 95), rel=1e-9)
+    to_test, to_reference = deepmind.compute_average_surface_distance(theirs)
+    areas = theirs["surfel_areas_gt"].sum(), theirs["surfel_areas_pred"].sum()
+    pooled = (to_test * areas[0] + to_reference * areas[1]) / sum(areas)
+    assert ours.assd() == pytest.approx(pooled, rel=1e-9)
+    for tolerance in (1.0, 2.0):
+        assert ours.surface_dice(tolerance) == pytest.approx(
+            deepmind.compute_surface_dice_at_tolerance(theirs, tolerance), rel=1e-9)
+    assert dice(test, reference) == pytest.approx(deepmind.compute_dice_coefficient(reference, test), rel=1e-12)
+
+
+def test_the_surface_areas_are_those_of_surface_distance():
+    """The 256 corner patterns' areas, from marching cubes, equal surface-distance's table of normals."""
+    tables = pytest.importorskip("surface_distance.lookup_tables", reason="surface-distance is a test dependency")
+    for spacing in [(1.0, 1.0, 1.0), (2.5, 0.9, 0.7)]:
+        np.testing.assert_allclose(surfel_areas(spacing),
+                                   tables.create_table_neighbour_code_to_surface_area(spacing), atol=1e-6)
+
+
+def test_an_empty_side_has_no_surface_distance():
+    ball = _blob(1)
+    found = surface_distances(ball, np.zeros_like(ball), SPACING)
+    assert np.isnan(found.hausdorff()) and np.isnan(found.assd()) and found.surface_dice(2.0) == 0.0
+
+
+def _masks(folder, masks, affine):
+    """A folder of NIfTI masks, written by nibabel: ``{name: mask[z, y, x]}``."""
+    folder.mkdir()
+    for name, mask in masks.items():
+        nib.save(nib.Nifti1Image(mask.transpose(2, 1, 0).astype(np.uint8), affine), folder / f"{name}.nii.gz")
+    return folder
+
+
+def test_agreement_matches_structures_by_name_and_reports_one_sided_ones(tmp_path):
+    """A reference of two hips and a bladder, a test whose names are spelled otherwise, whose right hip is eroded
+    and which lacks the bladder but has a rectum: matched by name, the worst first."""
+    affine = np.diag([-SPACING[0], -SPACING[1], SPACING[2], 1.0])
+    shape = (30, 40, 50)
+    nib.save(nib.Nifti1Image(np.zeros(shape[::-1], np.int16), affine), tmp_path / "ct.nii.gz")
+    left, right, bladder = np.zeros(shape, bool), np.zeros(shape, bool), np.zeros(shape, bool)
+    left[5:25, 5:20, 5:20], right[5:25, 5:20, 30:45], bladder[10:20, 25:35, 20:28] = True, True, True
+    reference = _masks(tmp_path / "reference", {"hip_left": left, "hip_right": right, "urinary_bladder": bladder},
+                       affine)
+    test = _masks(tmp_path / "test", {"Left hip": left, "hip-right": ndimage.binary_erosion(right),
+                                      "rectum": bladder}, affine)
+    rows = agreement(tmp_path / "ct.nii.gz", test, reference)
+    by_name = {row["name"]: row for row in rows}
+    assert set(by_name) == {"hip_left", "hip_right", "urinary_bladder", "rectum"}
+    assert by_name["hip_left"]["dice"] == 1.0 and by_name["hip_left"]["hd95_mm"] == 0.0
+    assert by_name["hip_left"]["present"] == "both" and by_name["hip_left"]["reference_label"] == 1
+    assert 0.5 < by_name["hip_right"]["dice"] < 1 and by_name["hip_right"]["volume_diff_ml"] < 0
+    assert by_name["urinary_bladder"]["present"] == "reference only" and by_name["urinary_bladder"]["dice"] == 0.0
+    assert by_name["rectum"]["present"] == "test only" and np.isnan(by_name["rectum"]["hd95_mm"])
+    assert [row["dice"] for row in rows] == sorted(row["dice"] for row in rows)            # the worst first
+    expected_ml = int(right.sum()) * float(np.prod(SPACING)) / 1000
+    assert by_name["hip_right"]["reference_ml"] == pytest.approx(expected_ml, rel=1e-4)
+
+
+def test_a_bad_reference_is_named_as_the_reference(tmp_path):
+    image = Volume(np.zeros((4, 4, 4), np.int16), (1.0, 1.0, 1.0))
+    labels = Volume(np.ones((4, 4, 4), np.uint8), (1.0, 1.0, 1.0))
+    with pytest.raises(InputError, match="the reference") as info:
+        agreement(image, labels, tmp_path / "absent.nii.gz")
+    assert info.value.parameter == "reference"
+    with pytest.raises(InputError) as info:
+        agreement(image, labels, labels, tolerance_mm=-1)
+    assert info.value.parameter == "tolerance_mm"
+
+
+def test_the_agreement_command_writes_its_picture_and_metrics(tmp_path):
+    from test_cli import assert_bad_input, run
+
+    test_agreement_matches_structures_by_name_and_reports_one_sided_ones(tmp_path)     # writes the files
+    result = run("agreement", tmp_path / "ct.nii.gz", "--labels-from", tmp_path / "test", "--reference",
+                 tmp_path / "reference", "--size", "96", "-o", tmp_path / "a.png", "--metrics-out",
+                 tmp_path / "m.csv")
+    assert result.exit_code == 0, result.output
+    assert "the worst, " in result.stdout and "on one side only (" in result.stderr
+    import csv
+
+    import imageio.v3 as iio
+
+    with open(tmp_path / "m.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [row["name"] for row in rows][:2] == ["rectum", "urinary_bladder"]          # Dice 0 first, by name
+    assert {row["name"]: row["dice"] for row in rows}["hip_left"] == "1"
+    picture = iio.imread(tmp_path / "a.png")
+    assert picture.ndim == 3 and picture.shape[1] >= 3 * 96
+    assert_bad_input(run("agreement", tmp_path / "ct.nii.gz", "--labels-from", tmp_path / "test", "--reference",
+                         tmp_path / "absent", "-o", tmp_path / "b.png"), "--reference")
+    assert not (tmp_path / "b.png").exists()
