@@ -44,10 +44,11 @@ def test_markdown_report(tmp_path):
                "projection": bench.bench_projection(np.arange(120, dtype=np.int16).reshape(4, 5, 6), 1, size=8),
                "raycast": bench.bench_raycast(1, {"shell": (segments.encode(bench.thin_shell(24, 9.0)),
                                                              View(30, 10, 0, (32, 32), 1.2))}),
-               "agreement": {"grid_xyz": [512, 512, 234], "structures": 3, "voxrender_s": 0.5,
-                             "surface_distance_s": 6.0, "speedup": 12.0, "largest_difference": 0.0}}
+               "agreement": {"grid_xyz": [512, 512, 234], "cases": {"organs": {
+                   "structures": 3, "voxrender_s": 0.5, "surface_distance_s": 6.0, "speedup": 12.0,
+                   "largest_difference": 0.0}}}}
     text = bench.markdown(results)
-    assert "voxrender 0.50 s, DeepMind's surface-distance 6.00 s (12.0x" in text
+    assert "| organs | 3 | 0.50 | 6.00 | 12.0x | 0 |" in text
     assert "| .nii.gz | 17.0 | 0.25 |" in text
     assert "| 1 | 2 |" in text and "fitted exponent" in text and "peers" in text and "| shell | adaptive |" in text
     assert "| gradient | 0.001 | 0.100 | 0.020 | 0.002 | 0.123 | 0.246 | 0.50 |" in text
@@ -195,4 +196,6 @@ def test_agreement_section_runs_small_and_agrees_with_surface_distance(tmp_path)
     ct = np.select([radius < 5, radius < 8, radius < 11], [-900, 500, 40], -1000).astype(np.int16)   # air in bone
     np.save(tmp_path / "head.npy", ct)
     result = bench_agreement(tmp_path / "head.npy", 1)
-    assert result["structures"] == 3 and result["largest_difference"] < 1e-9 and result["speedup"] > 0
+    for case in result["cases"].values():
+        assert case["structures"] > 0 and case["largest_difference"] < 1e-6 and case["speedup"] > 0
+    assert result["cases"]["3 tissues filling the head"]["structures"] == 3

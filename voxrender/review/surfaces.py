@@ -12,7 +12,8 @@ Euclidean distance transform, on the true spacing, from the other mask's surface
 
 Voxel-border definitions (MedPy's, which count a voxel's faces) give an average distance up to a third larger on thin
 structures; these are the definitions the tests hold to ``surface-distance`` itself.  The work is done in the masks'
-bounding box, with NumPy and scipy.ndimage: no sort of Python tuples.
+bounding box, and the distances are looked up in a k-d tree of the surface corners rather than by a distance
+transform of the whole box: its cost follows the surfaces, not the volume.
 
 References
 ----------
@@ -109,34 +110,43 @@ def surface_distances(test, reference, spacing):
     """The :class:`SurfaceDistances` of two boolean masks ``[z, y, x]`` of one grid, whose voxels are ``spacing``
     (x, y, z) mm.
 
+    Each surface corner's distance to the other surface's nearest corner is found in a k-d tree of those corners
+    (scipy's ``cKDTree``), on the true spacing: the distance the Euclidean distance transform of the whole box
+    gives there, at the cost of the surfaces, not of the volume (ten times less on a head's soft tissue).
+
     >>> ball = np.zeros((9, 9, 9), bool); ball[2:7, 2:7, 2:7] = True
     >>> moved = np.roll(ball, 1, axis=2)
     >>> found = surface_distances(ball, moved, (1.0, 1.0, 1.0))
     >>> round(found.surface_dice(1.0), 3), found.hausdorff() <= 1.0
     (1.0, True)
     """
-    from scipy import ndimage
+    from scipy.spatial import cKDTree
 
     test, reference = np.asarray(test, bool), np.asarray(reference, bool)
-    sampling = tuple(float(s) for s in spacing)[::-1]          # z, y, x: the arrays' axes
+    sampling = np.array([float(s) for s in spacing][::-1])     # z, y, x: the arrays' axes
     either = test | reference
     if not either.any():
         empty = np.zeros(0)
         return SurfaceDistances(empty, empty, empty, empty)
-    box = tuple(slice(max(int(w.min()) - 1, 0), int(w.max()) + 2) for w in np.nonzero(either))
-    # one voxel of background around the box on every side, so every surface corner lies inside it
-    pad = [(1 if b.start == 0 else 0, 1) for b in box]
-    test_box = np.pad(test[box], pad)
-    reference_box = np.pad(reference[box], pad)
-    areas = surfel_areas(sampling)
+    box = []
+    for axis in range(3):                                      # the masks' box, from their projections on each axis
+        held = np.flatnonzero(either.any(axis=tuple(a for a in range(3) if a != axis)))
+        box.append(slice(int(held[0]), int(held[-1]) + 1))
+    box = tuple(box)
+    areas = surfel_areas(tuple(sampling))
+    codes, points = [], []
+    for mask in (test, reference):
+        code = _corner_codes(np.pad(mask[box], 1))              # background all round: every corner of the surface
+        at = np.nonzero((code != 0) & (code != 255))
+        codes.append(code[at])
+        points.append(np.stack(at, axis=1) * sampling)
     found = []
-    codes = [_corner_codes(mask) for mask in (test_box, reference_box)]
-    borders = [(c != 0) & (c != 255) for c in codes]
-    fields = [ndimage.distance_transform_edt(~b, sampling=sampling) if b.any() else None for b in borders]
     for own, other in ((0, 1), (1, 0)):
-        at = borders[own]
-        distances = fields[other][at] if fields[other] is not None else np.full(int(at.sum()), np.inf)
-        found += [distances, areas[codes[own][at]]]
+        if len(points[other]) and len(points[own]):
+            distances = cKDTree(points[other]).query(points[own], workers=-1)[0]
+        else:
+            distances = np.full(len(points[own]), np.inf)
+        found += [distances, areas[codes[own]]]
     return SurfaceDistances(*found)
 
 
