@@ -132,3 +132,50 @@ def test_the_agreement_command_writes_its_picture_and_metrics(tmp_path):
     assert_bad_input(run("agreement", tmp_path / "ct.nii.gz", "--labels-from", tmp_path / "test", "--reference",
                          tmp_path / "absent", "-o", tmp_path / "b.png"), "--reference")
     assert not (tmp_path / "b.png").exists()
+
+
+def _cohort():
+    """Twelve studies of one liver and kidney: near-identical volumes (a voxel apart), one tiny liver, one in three
+    pieces, one touching the border, one without its kidney, one with an empty kidney."""
+    rows = []
+    for k in range(12):
+        study = f"s{k:02d}"
+        liver = {"study": study, "label": 1, "name": "liver", "voxels": 1_500_000 + k, "ml": 1500.0 + k / 1000,
+                 "components": 1, "border": False}
+        kidney = {"study": study, "label": 2, "name": "kidney_left" if k % 2 else "Left kidney", "voxels": 150_000,
+                  "ml": 150.0, "components": 1, "border": False}
+        if k == 3:
+            liver.update(voxels=300_000, ml=300.0)
+        if k == 5:
+            liver.update(components=3)
+        if k == 7:
+            liver.update(border=True)
+        if k == 9:
+            kidney = None
+        if k == 10:
+            kidney.update(voxels=0, ml=0.0)
+        rows += [liver] + ([kidney] if kidney else [])
+    return rows
+
+
+def test_cohort_flags_name_what_is_unlike_the_rest_and_nothing_else():
+    from voxrender import cohort_flags
+
+    flags = cohort_flags(_cohort())
+    # 'kidney_left' and 'Left kidney' are one structure, and a voxel's difference in the livers is no outlier
+    assert {(f["study"], f["flag"]) for f in flags} == {("s03", "volume"), ("s05", "components"), ("s07", "border"),
+                                                        ("s09", "missing"), ("s10", "empty")}
+    volume = next(f for f in flags if f["flag"] == "volume")
+    assert volume["value"] == 300.0 and volume["cohort"] == pytest.approx(1500.006) and volume["z"] < -3.5
+
+
+def test_agreement_flags_and_the_worst_first():
+    from voxrender.review.flags import cohort_flags, in_words, severity
+
+    rows = [{"study": s, "label": 1, "name": "liver", "voxels": 10, "ml": 1.0, "dice": d, "nsd": n}
+            for s, d, n in [("good", 0.95, 0.97), ("bad", 0.42, 0.5), ("fair", 0.79, 0.9)]]
+    flags = cohort_flags(rows, min_dice=0.8, min_nsd=0.8)
+    assert [(f["study"], f["flag"]) for f in flags] == [("bad", "dice"), ("bad", "nsd"), ("fair", "dice")]
+    assert in_words(flags[0]) == "liver: dice 0.420, below 0.8"
+    ordered = sorted({f["study"] for f in flags}, key=lambda s: severity([f for f in flags if f["study"] == s]))
+    assert ordered == ["bad", "fair"]

@@ -59,6 +59,7 @@ _PUBLIC = {
     "slice_pictures": ".qc.qc",
     "qc_sheet": ".qc.qc",
     "agreement": ".review.agreement",
+    "cohort_flags": ".review.flags",
 }
 
 __all__ = ["__version__", *_PUBLIC]
