@@ -179,3 +179,47 @@ def test_agreement_flags_and_the_worst_first():
     assert in_words(flags[0]) == "liver: dice 0.420, below 0.8"
     ordered = sorted({f["study"] for f in flags}, key=lambda s: severity([f for f in flags if f["study"] == s]))
     assert ordered == ["bad", "fair"]
+
+
+def test_a_batch_of_damaged_copies_puts_the_worst_first_and_the_identical_last(tmp_path):
+    """One CT, its reference (two hips and a bladder), and copies of it: identical, eroded, shifted, cut, emptied
+    and with a stray fragment, a row each of a manifest with its name; agreement.csv and flags.csv hold them, and
+    the index puts the worst first."""
+    import csv
+
+    from test_cli import run
+
+    affine = np.diag([-SPACING[0], -SPACING[1], SPACING[2], 1.0])
+    shape = (30, 40, 50)
+    nib.save(nib.Nifti1Image(np.zeros(shape[::-1], np.int16), affine), tmp_path / "ct.nii.gz")
+    left, right, bladder = np.zeros(shape, bool), np.zeros(shape, bool), np.zeros(shape, bool)
+    left[5:25, 5:20, 5:20], right[5:25, 5:20, 30:45], bladder[10:20, 25:35, 20:28] = True, True, True
+    structures = {"hip_left": left, "hip_right": right, "urinary_bladder": bladder}
+    _masks(tmp_path / "reference", structures, affine)
+    cut = right.copy()
+    cut[15:] = False
+    stray = bladder.copy()
+    stray[2:4, 30:33, 40:43] = True
+    copies = {"identical": {}, "eroded": {"hip_left": ndimage.binary_erosion(left, iterations=2)},
+              "shifted": {"urinary_bladder": np.roll(bladder, 3, axis=2)}, "cut": {"hip_right": cut},
+              "emptied": {"urinary_bladder": np.zeros(shape, bool)}, "stray": {"urinary_bladder": stray}}
+    lines = ["input,name,labels,reference"]
+    for name, changed in copies.items():
+        _masks(tmp_path / name, {**structures, **changed}, affine)
+        lines.append(f"ct.nii.gz,{name},{name},reference")
+    (tmp_path / "m.csv").write_text("\n".join(lines) + "\n")
+    result = run("batch", "--manifest", tmp_path / "m.csv", "--size", "32", "--jobs", "1", "-o", tmp_path / "out")
+    assert result.exit_code == 0, result.output
+    with open(tmp_path / "out" / "agreement.csv", newline="") as f:
+        agreement_rows = list(csv.DictReader(f))
+    dice = {(r["study"], r["name"]): float(r["dice"]) for r in agreement_rows}
+    assert all(dice[("identical", n)] == 1.0 for n in structures)
+    assert dice[("emptied", "urinary_bladder")] == 0.0 and dice[("eroded", "hip_left")] < 0.8
+    with open(tmp_path / "out" / "flags.csv", newline="") as f:
+        flagged = {(r["study"], r["flag"]) for r in csv.DictReader(f)}
+    assert ("emptied", "dice") in flagged and ("eroded", "dice") in flagged and ("stray", "components") in flagged
+    assert not any(study == "identical" for study, _ in flagged)
+    page = (tmp_path / "out" / "index.html").read_text()
+    order = [page.index(f">{name}</div>") for name in copies]
+    shown = [name for _, name in sorted(zip(order, copies, strict=True))]
+    assert shown[0] == "emptied" and shown[-1] == "identical", shown

@@ -163,6 +163,8 @@ class Item:
     qc_sheet: bool = False            # also its QC sheet (voxrender.qc.qc.qc_sheet), with these slices
     slices: object = None
     dicom_study_from: str | None = None   # the DICOM series its DICOM pictures join (default: its input)
+    reference: str | None = None      # a reference segmentation its labels are held to (agreement.csv)
+    tolerance_mm: float = 2.0         # of the normalised surface Dice
 
     @property
     def method(self):
@@ -286,21 +288,22 @@ def read_manifest(path):
         raise InputError(f"manifest {path} needs an 'input' column (CSV header) or [[input]] tables (TOML), "
                          "with a path in every row")
     for row in rows:
-        for column in ("input", "labels"):
+        for column in ("input", "labels", "reference"):
             if str(row.get(column) or "").strip() and not Path(str(row[column]).strip()).is_absolute():
                 row[column] = str(path.parent / str(row[column]).strip())
     return rows
 
 
 def items_from(inputs, manifest_rows, read, prepare, options, views, patterns, per_label=False, qc_sheet=False,
-               slices=None, dicom_study_from=None):
+               slices=None, dicom_study_from=None, reference=None, tolerance_mm=2.0):
     """The batch's items: one per input path, then one per manifest row (its columns override).
 
     A row's ``labels``, ``threshold``, ``views``, ``method`` and ``output`` (the picture's pattern) are text,
     parsed here.  A row's label map makes the object its labels (each in its colour); the threshold then
     applies only when the row or the command gives one.  With ``qc_sheet`` each item also gets its QC sheet, with
     ``slices`` (a :class:`~voxrender.qc.qc.SliceOptions`); ``dicom_study_from`` names the DICOM series that DICOM
-    pictures join.
+    pictures join.  ``reference`` (or a row's ``reference`` column) is a segmentation each study's labels are held to,
+    their normalised surface Dice at ``tolerance_mm``.
     """
     rows = [{"input": p} for p in inputs] + list(manifest_rows)
     if not rows:
@@ -328,9 +331,14 @@ def items_from(inputs, manifest_rows, read, prepare, options, views, patterns, p
             raise InputError(f"{row['input']}: {exc}") from None
         given = str(row.get("output") or "").strip()
         item_patterns = replace(patterns, picture=given or patterns.picture)
+        item_reference = str(row.get("reference") or "").strip() or (None if reference is None else str(reference))
+        if item_reference and (item_prepare.labels is None or item_prepare.labels.source is None):
+            raise InputError(f"{row['input']}: a reference is held against the study's labels; give them (the "
+                             "manifest's labels column, or --labels-from)", parameter="reference")
         items.append(Item(str(row["input"]), name, read, item_prepare, item_options, item_views, item_patterns,
                           per_label, ("picture",) if given else (), qc_sheet, slices,
-                          None if dicom_study_from is None else str(dicom_study_from)))
+                          None if dicom_study_from is None else str(dicom_study_from), item_reference,
+                          tolerance_mm))
     if patterns.dicom is not None:
         _check_dicom_sources(items)
     return items
@@ -394,8 +402,26 @@ def _stable(value):
 
 def _encode_task(item, cache_dir, out_dir=None):
     """Phase 1: the cached ``.vxs`` of ``item`` (made now if absent), with its grey values when its pictures are
-    projections, and its QC sheet when wanted and not there yet; returns a small report dict.
+    projections, and its QC sheet when wanted and not there yet; with a reference, the agreement of its labels
+    (``report["agreement"]``, :data:`voxrender.review.agreement.COLUMNS`); returns a small report dict.
     """
+    report = _encode_object(item, cache_dir, out_dir)
+    if item.reference is None or "error" in report:
+        return report
+    from ..review.agreement import COLUMNS, Comparison
+
+    try:
+        rows = Comparison(item.input, item.prepare.labels.source, item.reference, item.read).metrics(item.tolerance_mm)
+    except InputError as exc:
+        return {"input": item.input, "error": str(exc)}
+    except Exception as exc:  # a bug must not stop the other inputs; it is reported in the summary
+        return {"input": item.input, "error": f"internal error: {type(exc).__name__}: {exc}",
+                "traceback": traceback.format_exc()}
+    return {**report, "agreement": [{k: row[k] for k in COLUMNS} for row in rows]}
+
+
+def _encode_object(item, cache_dir, out_dir=None):
+    """:func:`_encode_task`'s object, grey values and sheet."""
     started = time.perf_counter()
     sheet = item.sheet_path(out_dir) if item.makes_sheet and out_dir is not None else None
     try:
@@ -620,7 +646,7 @@ def _png_size(path):
 # ------------------------------------------------------------------ the batch
 
 def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animations=(), fps=12, progress=None,
-              make_sheet=False):
+              make_sheet=False, min_dice=0.8, min_nsd=None):
     """Run a batch; return the summary rows (also written to ``out_dir/summary.csv``).
 
     Parameters
@@ -665,9 +691,9 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
         _make_folder(cache_dir)
         for folder in _folders_written(items, out_dir) | ({cache_dir} if own_cache else set()):
             remove_partials(folder)      # what a batch killed while writing left
-        ordered, study_errors = _render_all(items, out_dir, jobs, scheduler, cache_dir, progress)
+        ordered, study_errors, agreements = _render_all(items, out_dir, jobs, scheduler, cache_dir, progress)
         no_space = any([row.pop("no_space", False) for row in ordered])     # every row's mark popped
-        unwritten = _write_reports(out_dir, ordered, items, study_errors)
+        unwritten = _write_reports(out_dir, ordered, items, study_errors, agreements, min_dice, min_nsd)
         if no_space or unwritten:
             there = sum(row["status"] in ("ok", "done earlier") for row in ordered)
             said = f"{' and '.join(unwritten)} not written" if unwritten else f"{out_dir / 'summary.csv'} says which"
@@ -687,16 +713,25 @@ def _folders_written(items, out_dir):
                         for path in item.outputs(out_dir, view, index).wanted().values()}
 
 
-def _write_reports(out_dir, rows, items, study_errors):
-    """Write ``summary.csv`` and ``index.html``; the names of those a full disk left unwritten (and removed, as the
-    ones of an earlier run would not say what is there now).
+def _write_reports(out_dir, rows, items, study_errors, agreements=None, min_dice=0.8, min_nsd=None):
+    """Write ``summary.csv``, ``flags.csv``, ``agreement.csv`` (with references) and ``index.html``; the names of
+    those a full disk left unwritten (and removed, as the ones of an earlier run would not say what is there now).
     """
     from ..qc.index_page import write_index
+    from ..review import agreement, flags
 
+    agreements = agreements or {}
+    found = flags.cohort_flags(_label_rows(items, rows, agreements), min_dice=min_dice, min_nsd=min_nsd)
+    studies = _study_rows(items, rows, study_errors, out_dir, found)
+    reports = [(out_dir / "summary.csv", lambda path: _write_summary(path, rows)),
+               (out_dir / "flags.csv", lambda path: output.write_csv(path, flags.COLUMNS, found))]
+    if agreements:
+        reports.append((out_dir / "agreement.csv", lambda path: output.write_csv(
+            path, ("study", *agreement.COLUMNS),
+            [{**row, "study": item.name} for item in items for row in agreements.get(item.name, [])])))
+    reports.append((out_dir / "index.html", lambda path: write_index(path, studies)))
     unwritten = []
-    for path, write in ((out_dir / "summary.csv", lambda path: _write_summary(path, rows)),
-                        (out_dir / "index.html",
-                         lambda path: write_index(path, _study_rows(items, rows, study_errors, out_dir)))):
+    for path, write in reports:
         try:
             write(path)
         except OSError as exc:
@@ -705,6 +740,29 @@ def _write_reports(out_dir, rows, items, study_errors):
             path.unlink(missing_ok=True)
             unwritten.append(path.name)
     return unwritten
+
+
+def _label_rows(items, rows, agreements):
+    """Every study's labels with their own volumes (the summary's), and with a reference their Dice, NSD and
+    pieces, matched by name: what :func:`voxrender.review.flags.cohort_flags` takes.  Without a reference the
+    pieces are not counted, and nothing yet says whether a label touches the border.
+    """
+    from .._shared.label_sets import label_key
+
+    first = {}
+    for row in rows:
+        if row.get("label_volumes") and row["name"] not in first:
+            first[row["name"]] = json.loads(row["label_volumes"])
+    found = []
+    for item in items:
+        scores = {label_key(r["name"], r["label"]): r for r in agreements.get(item.name, [])}
+        for label in first.get(item.name, []):
+            score = scores.pop(label_key(label["name"], label["label"]), {})
+            found.append({"study": item.name, **label, "dice": score.get("dice"), "nsd": score.get("nsd"),
+                          "components": score.get("components")})
+        found += [{"study": item.name, "label": None, "name": r["name"], "voxels": None, "ml": None,
+                   "dice": r["dice"], "nsd": r["nsd"]} for r in scores.values()]      # the reference's alone
+    return found
 
 
 def _make_folder(folder):
@@ -747,13 +805,14 @@ def _folder_lock(out_dir):
 
 
 def _render_all(items, out_dir, jobs, scheduler, cache_dir, progress):
-    """The two phases of the batch (see the module's docstring): the summary rows, in the items' order, and the
-    errors of the items whose encoding failed (their QC sheet too), by name.
+    """The two phases of the batch (see the module's docstring): the summary rows, in the items' order, the errors
+    of the items whose encoding failed (their QC sheet too), by name, and the agreement rows of those with a
+    reference, by name.
     """
     jobs = jobs or os.cpu_count() or 1
     rows = {}
     todo = {}
-    study_errors = {}
+    study_errors, agreements = {}, {}
     earlier = _earlier_rows(out_dir)
     for item in items:
         for index, view in enumerate(item.views):
@@ -765,6 +824,8 @@ def _render_all(items, out_dir, jobs, scheduler, cache_dir, progress):
             else:
                 todo.setdefault(id(item), (item, []))[1].append((index, view))
         if item.makes_sheet and _png_size(item.sheet_path(out_dir)) is None:      # its sheet is made by its encode task
+            todo.setdefault(id(item), (item, []))
+        if item.reference is not None:                  # its agreement is measured by its encode task, every run
             todo.setdefault(id(item), (item, []))
     bar = progress(len(todo) + sum(len(v) for _, v in todo.values())) if progress else None
     pool = executor(jobs, scheduler)
@@ -780,6 +841,8 @@ def _render_all(items, out_dir, jobs, scheduler, cache_dir, progress):
                 report = {"input": item.input, "error": why_died(died)}
             if bar:
                 bar.update(1)
+            if report.get("agreement") is not None:
+                agreements[item.name] = report["agreement"]
             if "error" in report:
                 study_errors[item.name] = report["error"]
                 for index, view in views:
@@ -805,7 +868,7 @@ def _render_all(items, out_dir, jobs, scheduler, cache_dir, progress):
         pool.close()
         if bar:
             bar.close()
-    return [rows[(item.name, view.label)] for item in items for view in item.views], study_errors
+    return [rows[(item.name, view.label)] for item in items for view in item.views], study_errors, agreements
 
 
 def _earlier_rows(out_dir):
@@ -894,9 +957,10 @@ def _animate(item, out_dir, kind, fps, rows):
         raise InputError(f"cannot write {target}: {exc}{needs}") from None
 
 
-def _study_rows(items, rows, study_errors, out_dir):
+def _study_rows(items, rows, study_errors, out_dir, flags=()):
     """The index page's row of each item (:class:`voxrender.qc.index_page.StudyRow`): its sheet, its views (a turntable
-    when they are one), its labels and overlaps, and its error, with paths relative to ``out_dir``.
+    when they are one), its labels and overlaps, its flags (:func:`voxrender.review.flags.cohort_flags`) and its
+    error, with paths relative to ``out_dir``.
     """
     from ..qc.index_page import StudyRow
 
@@ -920,7 +984,7 @@ def _study_rows(items, rows, study_errors, out_dir):
         studies.append(StudyRow(item.name, item.input, error, relative(sheet) if sheet and sheet.is_file() else None,
                                 [] if turning else pictures, [path for _, path in pictures] if turning else [],
                                 labels, next((json.loads(row["overlaps"]) for row in own if row.get("overlaps")), []),
-                                sum(seconds) if seconds else None))
+                                sum(seconds) if seconds else None, [f for f in flags if f["study"] == item.name]))
     return studies
 
 

@@ -854,8 +854,16 @@ class _BatchBar:
 @click.option("--scheduler", metavar="ADDRESS|local", help="Run on a Dask cluster ('local' starts one here).")
 @click.option("--cache", type=click.Path(path_type=Path),
               help="Cache of encoded objects (default OUT/.voxrender-cache).")
+@click.option("--reference", type=click.Path(path_type=Path), metavar="REF",
+              help="A reference segmentation each input's labels are held to (a manifest's reference column gives "
+                   "one a row): OUT/agreement.csv, and Dice and NSD flags.")
+@click.option("--tolerance-mm", default=2.0, show_default=True, type=click.FloatRange(0),
+              help="The normalised surface Dice's tolerance.")
+@click.option("--min-dice", default=0.8, show_default=True, type=click.FloatRange(0, 1),
+              help="With a reference: a label under this Dice is flagged.")
+@click.option("--min-nsd", type=click.FloatRange(0, 1), help="With a reference: a label under this NSD is flagged.")
 def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pattern, per_label, make_sheet, gif,
-                  mp4, fps, jobs, scheduler, cache, **options):
+                  mp4, fps, jobs, scheduler, cache, reference, tolerance_mm, min_dice, min_nsd, **options):
     """Render many inputs from many views: pictures, summary.csv, index.html, and optionally a sheet or animation.
 
     Each input is encoded once (and cached); a failing input is reported and the others go on;
@@ -877,10 +885,12 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
     items = batch.items_from(batch.expand_inputs(inputs), batch.read_manifest(manifest) if manifest else [],
                              _read_options(options), _prep_options(options), render_options,
                              batch.parse_views(views, [parse.vector(a, "angles") for a in angles], turntable, axis),
-                             patterns, per_label, make_sheet, slice_options, options["dicom_study_from"])
+                             patterns, per_label, make_sheet, slice_options, options["dicom_study_from"],
+                             reference, tolerance_mm)
     animations = [kind for kind, wanted in (("gif", gif), ("mp4", mp4)) if wanted]
     started = time.perf_counter()
-    summary = batch.run_batch(items, out_dir, jobs, scheduler, cache, animations, fps, _BatchBar, make_sheet)
+    summary = batch.run_batch(items, out_dir, jobs, scheduler, cache, animations, fps, _BatchBar, make_sheet,
+                              min_dice, min_nsd)
     made = sum(r["status"] == "ok" for r in summary)
     earlier = sum(r["status"] == "done earlier" for r in summary)
     failed = {r["input"]: r["error"] for r in summary if r["status"] == "failed"}

@@ -44,6 +44,9 @@ class StudyRow:
         ``{"names": [a, b], "voxels": int}``: pairs of labels that claimed the same voxels.
     seconds : float, optional
         How long the study took.
+    flags : list of dict
+        Its cohort flags (:func:`voxrender.review.flags.cohort_flags`): they put it first, the worst first, and say
+        why in words.
     """
 
     name: str
@@ -55,6 +58,7 @@ class StudyRow:
     labels: list = ()
     overlaps: list = ()
     seconds: float | None = None
+    flags: list = ()
 
 
 def missing_labels(studies):
@@ -131,10 +135,17 @@ def write_index(path, studies, title="voxrender batch"):
     >>> "head &amp; neck" in (folder / "index.html").read_text()
     True
     """
+    from ..review.flags import severity
+
     studies = list(studies)
     missing = missing_labels(studies)
-    rows = [_row(number, study, missing.get(study.name, [])) for number, study in enumerate(studies, 1)]
+    # the flagged studies first, the worst first (the lowest Dice, else the most flags and the largest |z|); the
+    # others in the batch's order
+    order = sorted(range(len(studies)), key=lambda k: (not studies[k].flags, severity(studies[k].flags)
+                                                        if studies[k].flags else (), k))
+    rows = [_row(number, studies[k], missing.get(studies[k].name, [])) for number, k in enumerate(order, 1)]
     counts = [(len(studies), "studies", ""),
+              (sum(bool(study.flags) for study in studies), "flagged", "warn"),
               (sum(bool(study.error) for study in studies), "failed", "bad"),
               (len(missing), "with missing labels", "warn"),
               (sum(bool(study.overlaps) for study in studies if not study.error), "with overlaps", "warn")]
@@ -173,6 +184,12 @@ def _row(number, study, missing):
         flags.append(f'<span class="flag warn" title="{_text(", ".join(missing))}">missing {len(missing)}</span>')
     if study.overlaps:
         flags.append(f'<span class="flag warn">overlap {len(study.overlaps)}</span>')
+    if study.flags:
+        from ..review.flags import in_words
+
+        reasons = [in_words(flag) for flag in study.flags]
+        flags.append(f'<span class="flag warn" title="{_text("; ".join(reasons))}">flags {len(reasons)}</span>')
+        flags += [f'<div class="reason">{_text(reason)}</div>' for reason in reasons[:6]]
 
     about = [f'<div class="name">{_text(study.name)}</div>', f'<div class="input">{_text(study.input)}</div>']
     if study.seconds is not None:

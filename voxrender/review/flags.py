@@ -38,7 +38,8 @@ def cohort_flags(rows, *, min_dice=0.8, min_nsd=None):
     ----------
     rows : iterable of dict
         One a study and label: ``study``, ``label``, ``name``, ``voxels``, ``ml``; optionally ``components``,
-        ``border`` (bool), and with a reference ``dice`` and ``nsd``.
+        ``border`` (bool), and with a reference ``dice`` and ``nsd`` (a label the reference alone holds: ``voxels``
+        None, with its Dice).
     min_dice, min_nsd : float, optional
         The limits below which agreement with the reference is flagged (``None``: not flagged).
 
@@ -63,10 +64,10 @@ def cohort_flags(rows, *, min_dice=0.8, min_nsd=None):
         by_key.setdefault(row["key"], []).append(row)
     flags = []
     for group in by_key.values():
-        present = [r for r in group if r.get("voxels", 0) > 0]
+        present = [r for r in group if (r.get("voxels") or 0) > 0]
         name = group[0].get("name") or f"label {group[0].get('label')}"
         flags += [_flag(r, "empty", 0, _median([p["ml"] for p in present]), "> 0") for r in group
-                  if not r.get("voxels")]
+                  if r.get("voxels") == 0]
         held = {r["study"] for r in present}
         if held:
             missing = [s for s in studies if s not in {r["study"] for r in group}]
