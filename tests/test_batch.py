@@ -221,7 +221,7 @@ def test_index_page_and_sheet(tmp_path, stacks):
     work = items([stacks / "ball.npy", stacks / "broken.npy"], batch.parse_views(["anterior", "left"]), size=(24, 24))
     batch.run_batch(work, tmp_path, jobs=1, make_sheet=True)
     page = (tmp_path / "index.html").read_text()
-    rows = sum(page.count(f'<tr class="{kind}">') for kind in ("failed", "flagged", "clean"))
+    rows = sum(page.count(f'<tr class="{kind}" data-study=') for kind in ("failed", "flagged", "clean"))
     assert rows == 2 and page.count('<img src="ball/') == 2                # a row per study, each view linked
     assert "broken.npy" in page and '<div class="error">' in page         # the failed study keeps its error
     sheet = iio.imread(tmp_path / "sheet.png")

@@ -112,25 +112,33 @@ def _need_browser():
 
 
 @pytest.fixture(scope="module")
-def opened(tmp_path_factory):
-    """The page of a made batch, open in headless Chromium; with the console's and the page's errors."""
+def browser():
+    """Headless Chromium, one for the module (Playwright's sync API runs one at a time)."""
     _need_browser()
     from playwright.sync_api import sync_playwright
 
+    with sync_playwright() as playwright:
+        launched = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        try:
+            yield launched
+        finally:
+            launched.close()
+
+
+@pytest.fixture(scope="module")
+def opened(tmp_path_factory, browser):
+    """The page of a made batch, open in headless Chromium; with the console's and the page's errors."""
     folder = tmp_path_factory.mktemp("batch")
     write_index(folder / "index.html", make_batch(folder))
     errors = []
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        try:
-            page = browser.new_page(viewport={"width": 1280, "height": 800})
-            page.set_default_timeout(10_000)
-            page.on("console", lambda message: message.type == "error" and errors.append(message.text))
-            page.on("pageerror", lambda error: errors.append(str(error)))
-            page.goto((folder / "index.html").as_uri())
-            yield page, folder, errors
-        finally:
-            browser.close()
+    context = browser.new_context(viewport={"width": 1280, "height": 800})
+    page = context.new_page()
+    page.set_default_timeout(10_000)
+    page.on("console", lambda message: message.type == "error" and errors.append(message.text))
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    page.goto((folder / "index.html").as_uri())
+    yield page, folder, errors
+    context.close()
 
 
 def test_page_loads_without_errors_and_every_image_decodes(opened):
@@ -198,7 +206,7 @@ def test_flags_errors_and_counts_are_shown(opened):
         assert count in summary
 
     head, chest, abdomen, broken = (rows.nth(k) for k in range(4))
-    assert head.get_attribute("class") == "clean" and head.locator(".flag").count() == 0
+    assert head.get_attribute("class").split() == ["clean", "selected"] and head.locator(".flag").count() == 0
     assert chest.locator(".flag").inner_text().lower() == "missing 1"
     assert chest.locator("tr.missing").inner_text().split()[:2] == ["skull", "missing"]
     assert abdomen.locator(".flag").inner_text().lower() == "overlap 1"
@@ -216,3 +224,84 @@ def test_flags_errors_and_counts_are_shown(opened):
     assert [rows.nth(k).is_visible() for k in range(4)] == [False, True, True, True]
     page.locator("#only-flagged").uncheck()
     assert head.is_visible()
+
+
+def _open(context, path, errors):
+    page = context.new_page()
+    page.set_default_timeout(10_000)
+    page.on("pageerror", lambda error: errors.append(str(error)))
+    page.goto(path.as_uri())
+    return page
+
+
+def _verdicts(page):
+    return page.evaluate("""() => Object.fromEntries([...document.querySelectorAll("tr[data-study]")].map(
+        row => [row.dataset.study, [row.dataset.verdict, row.querySelector("input.note").value]]))""")
+
+
+def test_verdicts_by_keyboard_survive_a_reload_and_go_out_and_back_in_as_csv(tmp_path, browser):
+    """j/k move, p/f/u give a verdict, n edits the note; a reload keeps them (local storage); export writes
+    verdicts.csv, which read_verdicts reads and import puts back into a fresh browser."""
+    from voxrender.qc.index_page import read_verdicts
+
+    studies = make_batch(tmp_path)
+    studies[1] = StudyRow("=cmd|' /C calc'!A0", "/data/x", labels=[BRAIN])       # a name a spreadsheet would run
+    write_index(tmp_path / "index.html", studies)
+    errors = []
+    context = browser.new_context(accept_downloads=True)
+    page = _open(context, tmp_path / "index.html", errors)
+    assert page.locator("tr.selected").get_attribute("data-study") == "head"       # the first, on load
+    page.keyboard.press("p")
+    page.keyboard.press("j")
+    page.keyboard.press("f")
+    page.keyboard.press("n")
+    page.keyboard.type("cut at L2, \"see\" sheet")
+    page.keyboard.press("Enter")
+    page.keyboard.press("j")
+    page.keyboard.press("u")
+    page.keyboard.press("k")
+    assert page.locator("tr.selected").get_attribute("data-study") == "=cmd|' /C calc'!A0"
+    given = {"head": ["pass", ""], "=cmd|' /C calc'!A0": ["fail", 'cut at L2, "see" sheet'],
+             "abdomen": ["unsure", ""], "broken": ["", ""]}
+    assert _verdicts(page) == given
+    assert " ".join(page.locator("#reviewed").inner_text().split()) == "3 of 4 reviewed"
+    page.reload()
+    assert _verdicts(page) == given                                                 # kept in local storage
+    with page.expect_download() as download:
+        page.locator('[data-action="export"]').click()
+    exported = tmp_path / "verdicts.csv"
+    download.value.save_as(exported)
+    text = exported.read_text()
+    assert text.startswith("study,input,labels,verdict,note,reviewer,time") and "\"'=cmd|" in text
+    assert read_verdicts(exported) == {name: tuple(v) for name, v in given.items() if v[0]}
+    context.close()
+
+    fresh = browser.new_context()                                                   # another browser: nothing kept
+    page = _open(fresh, tmp_path / "index.html", errors)
+    assert all(v == ["", ""] for v in _verdicts(page).values())
+    page.locator("#import-file").set_input_files(str(exported))
+    page.wait_for_function("() => document.querySelector('#reviewed b').textContent === '3'")
+    assert _verdicts(page) == given
+    fresh.close()
+    assert errors == []
+
+
+def test_a_batch_takes_the_verdicts_of_an_earlier_review(tmp_path, browser):
+    """voxrender batch --verdicts: a second batch's page shows the first review's verdicts."""
+    from test_cli import run
+
+    np.save(tmp_path / "ball.npy", np.pad(np.full((6, 6, 6), 1000, np.int16), 4))
+    (tmp_path / "verdicts.csv").write_text("study,input,labels,verdict,note,reviewer,time\n"
+                                           "ball,x,,fail,\"holes, see the left view\",ab,2026-12-06\n")
+    result = run("batch", tmp_path / "ball.npy", "--threshold", "500", "--size", "32", "--jobs", "1", "--verdicts",
+                 tmp_path / "verdicts.csv", "-o", tmp_path / "second")
+    assert result.exit_code == 0, result.output
+    errors = []
+    page = _open(browser.new_context(), tmp_path / "second" / "index.html", errors)
+    assert _verdicts(page) == {"ball": ["fail", "holes, see the left view"]}
+    assert errors == []
+    (tmp_path / "bad.csv").write_text("study,verdict\nball,maybe\n")
+    from test_cli import assert_bad_input
+
+    assert_bad_input(run("batch", tmp_path / "ball.npy", "--threshold", "500", "--verdicts", tmp_path / "bad.csv",
+                         "-o", tmp_path / "third"), "--verdicts", "'maybe' is not a verdict")

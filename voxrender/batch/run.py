@@ -646,7 +646,7 @@ def _png_size(path):
 # ------------------------------------------------------------------ the batch
 
 def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animations=(), fps=12, progress=None,
-              make_sheet=False, min_dice=0.8, min_nsd=None):
+              make_sheet=False, min_dice=0.8, min_nsd=None, verdicts=None):
     """Run a batch; return the summary rows (also written to ``out_dir/summary.csv``).
 
     Parameters
@@ -666,6 +666,11 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
         ``progress(length)`` returning an object with ``update(n)`` and ``close()`` (a progress bar).
     make_sheet : bool
         Also lay every item's pictures out in ``out_dir/sheet.png``: a row per input, a column per view.
+    min_dice, min_nsd : float, optional
+        With references: the limits under which a label's agreement is flagged (``flags.csv``).
+    verdicts : dict, optional
+        ``{study: (verdict, note)}`` of an earlier review (:func:`voxrender.qc.index_page.read_verdicts`), put into
+        the index page.
 
     Besides the pictures it writes ``summary.csv`` and ``index.html`` (thumbnails linked to the pictures, with
     each row's numbers and errors).
@@ -693,7 +698,7 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
             remove_partials(folder)      # what a batch killed while writing left
         ordered, study_errors, agreements = _render_all(items, out_dir, jobs, scheduler, cache_dir, progress)
         no_space = any([row.pop("no_space", False) for row in ordered])     # every row's mark popped
-        unwritten = _write_reports(out_dir, ordered, items, study_errors, agreements, min_dice, min_nsd)
+        unwritten = _write_reports(out_dir, ordered, items, study_errors, agreements, min_dice, min_nsd, verdicts)
         if no_space or unwritten:
             there = sum(row["status"] in ("ok", "done earlier") for row in ordered)
             said = f"{' and '.join(unwritten)} not written" if unwritten else f"{out_dir / 'summary.csv'} says which"
@@ -713,7 +718,7 @@ def _folders_written(items, out_dir):
                         for path in item.outputs(out_dir, view, index).wanted().values()}
 
 
-def _write_reports(out_dir, rows, items, study_errors, agreements=None, min_dice=0.8, min_nsd=None):
+def _write_reports(out_dir, rows, items, study_errors, agreements=None, min_dice=0.8, min_nsd=None, verdicts=None):
     """Write ``summary.csv``, ``flags.csv``, ``agreement.csv`` (with references) and ``index.html``; the names of
     those a full disk left unwritten (and removed, as the ones of an earlier run would not say what is there now).
     """
@@ -723,6 +728,8 @@ def _write_reports(out_dir, rows, items, study_errors, agreements=None, min_dice
     agreements = agreements or {}
     found = flags.cohort_flags(_label_rows(items, rows, agreements), min_dice=min_dice, min_nsd=min_nsd)
     studies = _study_rows(items, rows, study_errors, out_dir, found)
+    for study in studies:                              # an earlier review's verdicts (voxrender batch --verdicts)
+        study.verdict, study.note = (verdicts or {}).get(study.name, ("", ""))
     reports = [(out_dir / "summary.csv", lambda path: _write_summary(path, rows)),
                (out_dir / "flags.csv", lambda path: output.write_csv(path, flags.COLUMNS, found))]
     if agreements:

@@ -862,8 +862,10 @@ class _BatchBar:
 @click.option("--min-dice", default=0.8, show_default=True, type=click.FloatRange(0, 1),
               help="With a reference: a label under this Dice is flagged.")
 @click.option("--min-nsd", type=click.FloatRange(0, 1), help="With a reference: a label under this NSD is flagged.")
+@click.option("--verdicts", type=click.Path(path_type=Path), metavar="FILE.csv",
+              help="An earlier review's verdicts.csv (exported from an index page): put into this index.")
 def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pattern, per_label, make_sheet, gif,
-                  mp4, fps, jobs, scheduler, cache, reference, tolerance_mm, min_dice, min_nsd, **options):
+                  mp4, fps, jobs, scheduler, cache, reference, tolerance_mm, min_dice, min_nsd, verdicts, **options):
     """Render many inputs from many views: pictures, summary.csv, index.html, and optionally a sheet or animation.
 
     Each input is encoded once (and cached); a failing input is reported and the others go on;
@@ -889,8 +891,11 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
                              reference, tolerance_mm)
     animations = [kind for kind, wanted in (("gif", gif), ("mp4", mp4)) if wanted]
     started = time.perf_counter()
+    from ..qc.index_page import read_verdicts
+
+    earlier = read_verdicts(verdicts) if verdicts is not None else None
     summary = batch.run_batch(items, out_dir, jobs, scheduler, cache, animations, fps, _BatchBar, make_sheet,
-                              min_dice, min_nsd)
+                              min_dice, min_nsd, earlier)
     made = sum(r["status"] == "ok" for r in summary)
     earlier = sum(r["status"] == "done earlier" for r in summary)
     failed = {r["input"]: r["error"] for r in summary if r["status"] == "failed"}

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import PurePath
 
 from .._shared.files import atomic_output
+from ..errors import InputError
 
 
 @dataclass
@@ -47,6 +48,9 @@ class StudyRow:
     flags : list of dict
         Its cohort flags (:func:`voxrender.review.flags.cohort_flags`): they put it first, the worst first, and say
         why in words.
+    verdict, note : str
+        An earlier reviewer's verdict (``pass``, ``fail``, ``unsure`` or empty) and note (:func:`read_verdicts`);
+        the browser's own, kept in its local storage, come over them.
     """
 
     name: str
@@ -59,6 +63,46 @@ class StudyRow:
     overlaps: list = ()
     seconds: float | None = None
     flags: list = ()
+    verdict: str = ""
+    note: str = ""
+
+
+VERDICTS = ("pass", "fail", "unsure")
+VERDICT_COLUMNS = ("study", "input", "labels", "verdict", "note", "reviewer", "time")
+
+
+def read_verdicts(path):
+    r"""The verdicts of a ``verdicts.csv`` the index page exported (:data:`VERDICT_COLUMNS`), ``{study: (verdict,
+    note)}``; a study without a verdict or note is left out.
+
+    >>> import pathlib, tempfile
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "verdicts.csv"
+    >>> _ = path.write_text("study,input,labels,verdict,note,reviewer,time\nct-1,a,liver,fail,\"cut, at L2\",ab,t\n")
+    >>> read_verdicts(path)
+    {'ct-1': ('fail', 'cut, at L2')}
+    """
+    import csv
+
+    from .._shared.text import from_spreadsheet_cell
+
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            rows = list(csv.DictReader(f))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"cannot read the verdicts {path}: {exc}", parameter="verdicts") from None
+    if rows and not {"study", "verdict"} <= set(rows[0]):
+        raise InputError(f"the verdicts {path} need 'study' and 'verdict' columns, as the index page exports them",
+                         parameter="verdicts")
+    found = {}
+    for number, row in enumerate(rows, start=2):
+        verdict = str(row.get("verdict") or "").strip().lower()
+        if verdict and verdict not in VERDICTS:
+            raise InputError(f"the verdicts {path}, line {number}: {verdict!r} is not a verdict; choose "
+                             f"{', '.join(VERDICTS)} or none", parameter="verdicts")
+        note = from_spreadsheet_cell(str(row.get("note") or ""))
+        if verdict or note:
+            found[from_spreadsheet_cell(str(row.get("study") or ""))] = (verdict, note)
+    return found
 
 
 def missing_labels(studies):
@@ -151,6 +195,7 @@ def write_index(path, studies, title="voxrender batch"):
               (sum(bool(study.overlaps) for study in studies if not study.error), "with overlaps", "warn")]
     summary = " ".join(f'<span class="count {kind if number else ""}"><b>{number}</b> {what}</span>'
                        for number, what, kind in counts)
+    summary += f' <span class="count" id="reviewed"><b>0</b> of {len(studies)} reviewed</span>'
     page = _PAGE.format(title=_text(title), summary=summary, rows="\n".join(rows), style=_STYLE, script=_SCRIPT)
     with atomic_output(path) as tmp:
         tmp.write_text(page, encoding="utf-8")
@@ -226,9 +271,14 @@ def _row(number, study, missing):
     label_table = f'<table class="labels">{"".join(labels)}</table>' if labels else ""
 
     kind = "failed" if study.error else ("flagged" if flags else "clean")
-    cells = [f'<td class="n">{number}</td>', f'<td>{"".join(about)}</td>', f'<td>{"".join(flags)}</td>',
+    verdict = ('<div class="verdict">' + "".join(
+        f'<button type="button" data-give="{v}" title="{v} ({v[0]})">{v}</button>' for v in VERDICTS)
+        + f'<input class="note" type="text" placeholder="note (n)" value="{_text(study.note)}"></div>')
+    names = ", ".join(label["name"] for label in study.labels if label.get("voxels"))
+    cells = [f'<td class="n">{number}</td>', f'<td>{"".join(about)}{verdict}</td>', f'<td>{"".join(flags)}</td>',
              f"<td>{sheet}</td>", f'<td class="views">{views}</td>', f"<td>{turntable}</td>", f"<td>{label_table}</td>"]
-    return f'<tr class="{kind}">{"".join(cells)}</tr>'
+    return (f'<tr class="{kind}" data-study="{_text(study.name)}" data-input="{_text(study.input)}" '
+            f'data-labels="{_text(names)}" data-verdict="{_text(study.verdict)}">{"".join(cells)}</tr>')
 
 
 _STYLE = """
@@ -258,12 +308,21 @@ td.n{text-align:right;font-variant-numeric:tabular-nums}
 tr.missing td{color:#8a5a00;font-weight:600}tr.missing td:first-child::after{content:" \\26A0"}
 tr.overlap td{color:#8a5a00}
 body.only-flagged tr.clean{display:none}
+.reason{font-size:12px;color:#5a3d00}
+.verdict{margin-top:4px}.verdict button{font-size:11px;margin:0 2px 2px 0;padding:1px 5px;border:1px solid #999;
+ border-radius:3px;background:#fff;cursor:pointer}
+.verdict input.note{font-size:11px;width:11em;display:block;margin-top:2px}
+tr[data-verdict="pass"] button[data-give="pass"]{background:#2e7d32;color:#fff}
+tr[data-verdict="fail"] button[data-give="fail"]{background:#b00020;color:#fff}
+tr[data-verdict="unsure"] button[data-give="unsure"]{background:#ffc940}
+tr.selected>td{background:#e8f0fe}tr.selected>td:first-child{box-shadow:inset 3px 0 #1a73e8}
+.keys{color:#666;font-size:11px}
 """
 
 # The turntable: the frame is the pointer's place across the picture (left edge the first frame, right edge the
 # last), so a mouse turns it by moving over it and a finger or pen by dragging (captured, so it may leave the
 # picture); the arrow keys step it.  The frames are loaded up front and kept, so a turn never waits for a file.
-_SCRIPT = """
+_SCRIPT = r"""
 document.querySelectorAll("img.turntable").forEach(function (img) {
   var frames = JSON.parse(img.dataset.frames), index = 0;
   img.preloaded = frames.map(function (src) { var frame = new Image(); frame.src = src; return frame; });
@@ -285,13 +344,143 @@ document.querySelectorAll("img.turntable").forEach(function (img) {
 document.getElementById("only-flagged").addEventListener("change", function (event) {
   document.body.classList.toggle("only-flagged", event.target.checked);
 });
+
+// Verdicts: kept at once in this browser's local storage, keyed by the batch's folder and the study, over those
+// the page was written with (--verdicts); exported and imported as verdicts.csv.
+(function () {
+  var rows = [].slice.call(document.querySelectorAll("tr[data-study]"));
+  var folder = location.pathname.replace(/[^/]*$/, ""), selected = -1;
+  var reviewer = document.getElementById("reviewer");
+  function key(name) { return "voxrender:" + folder + ":" + name; }
+  function stored(row) {
+    try { return JSON.parse(localStorage.getItem(key(row.dataset.study)) || "null"); } catch (e) { return null; }
+  }
+  function keep(row) {
+    var note = row.querySelector("input.note").value;
+    try {
+      localStorage.setItem(key(row.dataset.study), JSON.stringify({verdict: row.dataset.verdict, note: note,
+        reviewer: reviewer.value, time: new Date().toISOString()}));
+    } catch (e) { /* storage refused (a private window): the verdict stays on the page */ }
+  }
+  function count() {
+    var done = rows.filter(function (row) { return row.dataset.verdict; }).length;
+    document.querySelector("#reviewed b").textContent = done;
+  }
+  function give(row, verdict) { row.dataset.verdict = verdict; keep(row); count(); }
+  function select(k) {
+    if (!rows.length) { return; }
+    k = Math.min(rows.length - 1, Math.max(0, k));
+    if (selected >= 0) { rows[selected].classList.remove("selected"); }
+    selected = k;
+    rows[k].classList.add("selected");
+    rows[k].scrollIntoView({block: "nearest"});
+  }
+  rows.forEach(function (row, k) {
+    var earlier = stored(row);
+    if (earlier) {
+      row.dataset.verdict = earlier.verdict || "";
+      row.querySelector("input.note").value = earlier.note || "";
+    }
+    row.querySelectorAll("button[data-give]").forEach(function (button) {
+      button.addEventListener("click", function () { select(k); give(row, button.dataset.give); });
+    });
+    var note = row.querySelector("input.note");
+    note.addEventListener("input", function () { keep(row); });
+    note.addEventListener("keydown", function (event) {
+      if (event.key === "Enter" || event.key === "Escape") { note.blur(); }
+      event.stopPropagation();
+    });
+    row.addEventListener("click", function () { select(k); });
+  });
+  try { reviewer.value = localStorage.getItem("voxrender:reviewer") || ""; } catch (e) {}
+  reviewer.addEventListener("input", function () {
+    try { localStorage.setItem("voxrender:reviewer", reviewer.value); } catch (e) {}
+  });
+  reviewer.addEventListener("keydown", function (event) { event.stopPropagation(); });
+  document.addEventListener("keydown", function (event) {
+    if (event.ctrlKey || event.metaKey || event.altKey || selected < 0) { return; }
+    var row = rows[selected];
+    var moves = {j: 1, ArrowDown: 1, k: -1, ArrowUp: -1};
+    var verdicts = {p: "pass", f: "fail", u: "unsure"};
+    if (event.key in moves) { event.preventDefault(); select(selected + moves[event.key]); }
+    else if (event.key in verdicts) { event.preventDefault(); give(row, verdicts[event.key]); }
+    else if (event.key === "n") { event.preventDefault(); row.querySelector("input.note").focus(); }
+  });
+  function cell(text) {          // quoted, and a text a spreadsheet would run as a formula kept as text
+    text = String(text == null ? "" : text);
+    if (/^[=+\-@\t\r]/.test(text) && isNaN(Number(text))) { text = "'" + text; }
+    return '"' + text.replace(/"/g, '""') + '"';
+  }
+  document.querySelector('[data-action="export"]').addEventListener("click", function () {
+    var lines = ["study,input,labels,verdict,note,reviewer,time"];
+    rows.forEach(function (row) {
+      var kept = stored(row) || {};
+      lines.push([row.dataset.study, row.dataset.input, row.dataset.labels, row.dataset.verdict,
+                  row.querySelector("input.note").value, kept.reviewer || reviewer.value, kept.time || ""]
+                 .map(cell).join(","));
+    });
+    var link = document.createElement("a");
+    link.href = URL.createObjectURL(new Blob([lines.join("\r\n") + "\r\n"], {type: "text/csv"}));
+    link.download = "verdicts.csv";
+    document.body.appendChild(link);
+    link.click();
+    link.remove();
+  });
+  function parse(text) {         // RFC 4180: quoted fields, doubled quotes, CRLF or LF
+    var table = [], row = [], field = "", quoted = false;
+    for (var i = 0; i < text.length; i++) {
+      var c = text[i];
+      if (quoted) {
+        if (c === '"' && text[i + 1] === '"') { field += '"'; i++; }
+        else if (c === '"') { quoted = false; }
+        else { field += c; }
+      } else if (c === '"') { quoted = true; }
+      else if (c === ",") { row.push(field); field = ""; }
+      else if (c === "\n" || c === "\r") {
+        if (c === "\r" && text[i + 1] === "\n") { i++; }
+        row.push(field); table.push(row); row = []; field = "";
+      } else { field += c; }
+    }
+    if (field || row.length) { row.push(field); table.push(row); }
+    return table;
+  }
+  function plain(text) { return /^'[=+\-@\t\r]/.test(text) ? text.slice(1) : text; }
+  var picker = document.getElementById("import-file");
+  document.querySelector('[data-action="import"]').addEventListener("click", function () { picker.click(); });
+  picker.addEventListener("change", function () {
+    if (!picker.files.length) { return; }
+    picker.files[0].text().then(function (text) {
+      var table = parse(text.replace(/^\ufeff/, "")), head = table.shift() || [];
+      var at = {};
+      head.forEach(function (name, k) { at[name.trim()] = k; });
+      var byName = {};
+      rows.forEach(function (row) { byName[row.dataset.study] = row; });
+      table.forEach(function (fields) {
+        var row = byName[plain(fields[at.study] || "")];
+        var verdict = (fields[at.verdict] || "").trim().toLowerCase();
+        if (!row || (verdict && ["pass", "fail", "unsure"].indexOf(verdict) < 0)) { return; }
+        row.dataset.verdict = verdict;
+        row.querySelector("input.note").value = plain(fields[at.note] || "");
+        keep(row);
+      });
+      count();
+      picker.value = "";
+    });
+  });
+  count();
+  select(0);
+})();
 """
 
 _PAGE = """<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><meta name="viewport" content="width=device-width">
 <link rel="icon" href="data:,"><title>{title}</title><style>{style}</style></head>
 <body><h1>{title}</h1>
-<div class="summary">{summary}<label><input type="checkbox" id="only-flagged"> only studies with a flag</label></div>
+<div class="summary">{summary}<label><input type="checkbox" id="only-flagged"> only studies with a flag</label>
+<label>reviewer <input type="text" id="reviewer" size="8"></label>
+<button type="button" data-action="export">export verdicts.csv</button>
+<button type="button" data-action="import">import</button><input type="file" id="import-file" accept=".csv" hidden>
+<span class="keys">j/k: next, previous; p/f/u: pass, fail, unsure; n: note</span></div>
 <table class="studies"><thead><tr><th>#</th><th>study</th><th>flags</th><th>sheet</th><th>views</th><th>turntable</th>
 <th>labels</th></tr></thead>
 <tbody>
