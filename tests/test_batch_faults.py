@@ -218,7 +218,7 @@ def _check_full_disk(out, result):
         assert there == {Path(r["output"]) for r in rows if r["status"] == "ok"}
         assert all(r["error"].endswith("No space left on device") for r in rows if r["status"] == "failed")
     else:
-        assert "summary.csv and index.html not written" in result.stderr
+        assert "summary.csv, flags.csv and index.html not written" in result.stderr
 
 
 def _full_batch(stacks, out, cache):

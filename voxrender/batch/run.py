@@ -333,8 +333,8 @@ def items_from(inputs, manifest_rows, read, prepare, options, views, patterns, p
         item_patterns = replace(patterns, picture=given or patterns.picture)
         item_reference = str(row.get("reference") or "").strip() or (None if reference is None else str(reference))
         if item_reference and (item_prepare.labels is None or item_prepare.labels.source is None):
-            raise InputError(f"{row['input']}: a reference is held against the study's labels; give them (the "
-                             "manifest's labels column, or --labels-from)", parameter="reference")
+            raise InputError(f"{row['input']}: a reference is held against the study's labels; give its labels "
+                             "too (a manifest's labels column)", parameter="reference")
         items.append(Item(str(row["input"]), name, read, item_prepare, item_options, item_views, item_patterns,
                           per_label, ("picture",) if given else (), qc_sheet, slices,
                           None if dicom_study_from is None else str(dicom_study_from), item_reference,
@@ -701,7 +701,8 @@ def run_batch(items, out_dir, jobs=None, scheduler=None, cache_dir=None, animati
         unwritten = _write_reports(out_dir, ordered, items, study_errors, agreements, min_dice, min_nsd, verdicts)
         if no_space or unwritten:
             there = sum(row["status"] in ("ok", "done earlier") for row in ordered)
-            said = f"{' and '.join(unwritten)} not written" if unwritten else f"{out_dir / 'summary.csv'} says which"
+            listed = ", ".join(unwritten[:-1]) + " and " + unwritten[-1] if len(unwritten) > 1 else "".join(unwritten)
+            said = f"{listed} not written" if unwritten else f"{out_dir / 'summary.csv'} says which"
             raise InputError(f"no space left on device in {out_dir}: {there} of {len(ordered)} pictures are there, "
                              f"the others were not made; {said}")
         for kind in animations:

@@ -97,12 +97,12 @@ class Comparison:
             rows.append({**_row(found, masks, self.volume.spacing, voxel_ml, tolerance_mm), "key": key})
         return sorted(rows, key=lambda r: (r["dice"], r["name"]))
 
-    def classes(self):
-        """The image's grid with :data:`CLASSES`: where the structures agree, and where one side alone holds
-        one (a disagreement shows over an agreement of another structure).
+    def classes(self, keys=None):
+        """The image's grid with :data:`CLASSES` of the structures ``keys`` (all when ``None``): where they agree,
+        and where one side alone holds one (a disagreement shows over an agreement of another structure).
         """
         classes = np.zeros(self.volume.shape, np.uint8)
-        for key in self.keys:
+        for key in self.keys if keys is None else keys:
             _, box, (test, reference) = self.masks(key)
             here = np.select([test & reference, test, reference], [1, 2, 3], 0).astype(np.uint8)
             classes[box] = np.maximum(classes[box], here)
@@ -110,16 +110,18 @@ class Comparison:
 
     def picture(self, rows, size=(256, 256), worst=4):
         """A sheet: for each of the ``worst`` structures of ``rows`` (:meth:`metrics`), its axial, coronal and
-        sagittal slices through the middle of both, in :data:`CLASSES` with a legend; then the metrics table.
+        sagittal slices through the middle of both, it alone in :data:`CLASSES` with a legend; then the metrics
+        table.
         """
         from ..qc.qc import default_window
         from ..qc.sheet import sheet
         from ..qc.slices import PLANES, plane_axes, plane_image, slice_picture
 
-        classes, window = self.classes(), default_window(self.volume)
+        window = default_window(self.volume)
         pictures, captions = [], []
         for row in rows[:worst]:
             _, box, _ = self.masks(row["key"])
+            classes = self.classes([row["key"]])                  # this structure alone
             middle = [(b.start + b.stop - 1) // 2 for b in box][::-1]               # x, y, z
             line, words = [], []
             for plane in PLANES:
