@@ -267,6 +267,13 @@ def test_verdicts_by_keyboard_survive_a_reload_and_go_out_and_back_in_as_csv(tmp
     assert " ".join(page.locator("#reviewed").inner_text().split()) == "3 of 4 reviewed"
     page.reload()
     assert _verdicts(page) == given                                                 # kept in local storage
+    page.locator("#order").select_option("name")                                    # by name, and back
+    names = page.evaluate("() => [...document.querySelectorAll('tr[data-study]')].map(r => r.dataset.study)")
+    assert names == sorted(names, key=str.lower) and page.locator("tr.selected").get_attribute("data-study") == "head"
+    page.keyboard.press("k")                                                        # moving follows the order shown
+    assert page.locator("tr.selected").get_attribute("data-study") == names[names.index("head") - 1]
+    page.locator("#order").select_option("worst")
+    assert page.evaluate("() => document.querySelector('tr[data-study]').dataset.study") == "head"
     with page.expect_download() as download:
         page.locator('[data-action="export"]').click()
     exported = tmp_path / "verdicts.csv"

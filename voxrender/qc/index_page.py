@@ -375,14 +375,14 @@ document.getElementById("only-flagged").addEventListener("change", function (eve
     rows[k].classList.add("selected");
     rows[k].scrollIntoView({block: "nearest"});
   }
-  rows.forEach(function (row, k) {
+  rows.forEach(function (row) {
     var earlier = stored(row);
     if (earlier) {
       row.dataset.verdict = earlier.verdict || "";
       row.querySelector("input.note").value = earlier.note || "";
     }
     row.querySelectorAll("button[data-give]").forEach(function (button) {
-      button.addEventListener("click", function () { select(k); give(row, button.dataset.give); });
+      button.addEventListener("click", function () { select(rows.indexOf(row)); give(row, button.dataset.give); });
     });
     var note = row.querySelector("input.note");
     note.addEventListener("input", function () { keep(row); });
@@ -390,7 +390,7 @@ document.getElementById("only-flagged").addEventListener("change", function (eve
       if (event.key === "Enter" || event.key === "Escape") { note.blur(); }
       event.stopPropagation();
     });
-    row.addEventListener("click", function () { select(k); });
+    row.addEventListener("click", function () { select(rows.indexOf(row)); });
   });
   try { reviewer.value = localStorage.getItem("voxrender:reviewer") || ""; } catch (e) {}
   reviewer.addEventListener("input", function () {
@@ -467,6 +467,16 @@ document.getElementById("only-flagged").addEventListener("change", function (eve
       picker.value = "";
     });
   });
+  var body = document.querySelector("table.studies > tbody"), written = rows.slice();
+  document.getElementById("order").addEventListener("change", function (event) {
+    var current = rows[selected];
+    rows = written.slice();
+    if (event.target.value === "name") {
+      rows.sort(function (a, b) { return a.dataset.study.localeCompare(b.dataset.study, undefined, {numeric: true}); });
+    }
+    rows.forEach(function (row) { body.appendChild(row); });
+    selected = rows.indexOf(current);
+  });
   count();
   select(0);
 })();
@@ -477,6 +487,8 @@ _PAGE = """<!doctype html>
 <link rel="icon" href="data:,"><title>{title}</title><style>{style}</style></head>
 <body><h1>{title}</h1>
 <div class="summary">{summary}<label><input type="checkbox" id="only-flagged"> only studies with a flag</label>
+<label>order <select id="order"><option value="worst">worst first</option><option value="name">by name</option>
+</select></label>
 <label>reviewer <input type="text" id="reviewer" size="8"></label>
 <button type="button" data-action="export">export verdicts.csv</button>
 <button type="button" data-action="import">import</button><input type="file" id="import-file" accept=".csv" hidden>
