@@ -200,9 +200,12 @@ def test_a_batch_of_damaged_copies_puts_the_worst_first_and_the_identical_last(t
     cut[15:] = False
     stray = bladder.copy()
     stray[2:4, 30:33, 40:43] = True
+    edge = bladder.copy()
+    edge[10:20, 25:35, 20:] = True                            # out to the edge of the field of view
     copies = {"identical": {}, "eroded": {"hip_left": ndimage.binary_erosion(left, iterations=2)},
               "shifted": {"urinary_bladder": np.roll(bladder, 3, axis=2)}, "cut": {"hip_right": cut},
-              "emptied": {"urinary_bladder": np.zeros(shape, bool)}, "stray": {"urinary_bladder": stray}}
+              "emptied": {"urinary_bladder": np.zeros(shape, bool)}, "stray": {"urinary_bladder": stray},
+              "edge": {"urinary_bladder": edge}}
     lines = ["input,name,labels,reference"]
     for name, changed in copies.items():
         _masks(tmp_path / name, {**structures, **changed}, affine)
@@ -218,6 +221,7 @@ def test_a_batch_of_damaged_copies_puts_the_worst_first_and_the_identical_last(t
     with open(tmp_path / "out" / "flags.csv", newline="") as f:
         flagged = {(r["study"], r["flag"]) for r in csv.DictReader(f)}
     assert ("emptied", "dice") in flagged and ("eroded", "dice") in flagged and ("stray", "components") in flagged
+    assert ("edge", "border") in flagged
     assert not any(study == "identical" for study, _ in flagged)
     page = (tmp_path / "out" / "index.html").read_text()
     order = [page.index(f">{name}</div>") for name in copies]

@@ -331,6 +331,8 @@ def items_from(inputs, manifest_rows, read, prepare, options, views, patterns, p
             raise InputError(f"{row['input']}: {exc}") from None
         given = str(row.get("output") or "").strip()
         item_patterns = replace(patterns, picture=given or patterns.picture)
+        if item_prepare.labels is not None:                # the pieces and the edge of each label, for the flags
+            item_prepare = replace(item_prepare, measure_labels=True)
         item_reference = str(row.get("reference") or "").strip() or (None if reference is None else str(reference))
         if item_reference and (item_prepare.labels is None or item_prepare.labels.source is None):
             raise InputError(f"{row['input']}: a reference is held against the study's labels; give its labels "
@@ -584,7 +586,7 @@ def _render_task(item, view, index, segments_path, out_dir, encode_seconds):
     return _summary_row(item, view, outputs.picture, "ok", stats=json.dumps(result.image.stats, default=float),
                        labels=len(result.image.stats.get("label_pixels", {})) if result.labels is not None else "",
                        label_volumes=json.dumps([{k: row[k] for k in ("label", "name", "colour", "voxels", "ml",
-                                                                      "shown") if k in row}
+                                                                      "shown", "components", "border") if k in row}
                                                  for row in result.label_rows]) if result.label_rows else "",
                        overlaps=json.dumps(encoded.segments.meta.get("overlaps") or []),
                        load_s=encode_seconds.get("load", 0.0), prepare_s=encode_seconds.get("prepare", 0.0),
@@ -752,8 +754,8 @@ def _write_reports(out_dir, rows, items, study_errors, agreements=None, min_dice
 
 def _label_rows(items, rows, agreements):
     """Every study's labels with their own volumes (the summary's), and with a reference their Dice, NSD and
-    pieces, matched by name: what :func:`voxrender.review.flags.cohort_flags` takes.  Without a reference the
-    pieces are not counted, and nothing yet says whether a label touches the border.
+    pieces, matched by name: what :func:`voxrender.review.flags.cohort_flags` takes.  The pieces and the border are
+    measured with the labels (``PrepOptions.measure_labels``), the Dice and NSD with the reference.
     """
     from .._shared.label_sets import label_key
 
@@ -767,7 +769,7 @@ def _label_rows(items, rows, agreements):
         for label in first.get(item.name, []):
             score = scores.pop(label_key(label["name"], label["label"]), {})
             found.append({"study": item.name, **label, "dice": score.get("dice"), "nsd": score.get("nsd"),
-                          "components": score.get("components")})
+                          "components": label.get("components", score.get("components"))})
         found += [{"study": item.name, "label": None, "name": r["name"], "voxels": None, "ml": None,
                    "dice": r["dice"], "nsd": r["nsd"]} for r in scores.values()]      # the reference's alone
     return found

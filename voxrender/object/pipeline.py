@@ -66,6 +66,7 @@ class PrepOptions:
     labels: prep.LabelSelection | None = None
     tissues: tuple = ()        # (name, Window, (r, g, b)) each: several tissues of a CT, each a label
     bin: int = 1               # mean binning of bin x bin x bin voxels, after the crop: a preview of a huge stack
+    measure_labels: bool = False   # also each label's pieces and whether it touches the edge (a batch's flags)
 
     def __post_init__(self):
         if self.voxel is not None and not (self.voxel > 0 and math.isfinite(self.voxel)):
@@ -304,6 +305,11 @@ def _encode_labels(volume, read, prepare, meta, progress):
     meta["label_ml"] = {str(label): label_sets.millilitres(count, volume.spacing)
                         for label, count in info["voxels"].items()}
     meta["label_voxels"] = {str(label): count for label, count in info["voxels"].items()}
+    if prepare.measure_labels:                          # on the image's grid, as given: pieces and the edge
+        measured = label_sets.shapes(prep.crop(label_volume.values, prepare.crop),
+                                     label_volume.meta.get("label_sets") or {}, info["voxels"])
+        meta["label_pieces"] = {str(k): v[0] for k, v in measured.items()}
+        meta["label_border"] = {str(k): v[1] for k, v in measured.items()}
     within = [f"threshold {_said(meta['threshold'])}" if "threshold" in meta else "",
               f"pieces of {prepare.min_object} voxels or more" if prepare.min_object > 1 else ""]
     if any(within):

@@ -270,6 +270,10 @@ def _label_rows(segments, table, pixels=None):
     rows = label_list({k: v for k, v in table.items() if voxels.get(k)}, voxels, segments.spacing, pixels,
                       segments.meta.get("label_ml"), segments.meta.get("label_ml_outside"))
     shown = segments.meta.get("labels_shown")         # the volumes are the labels' own; the picture keeps less
+    pieces, border = segments.meta.get("label_pieces"), segments.meta.get("label_border")
+    if pieces is not None:                            # measured for a batch's flags
+        rows = [{**row, "components": pieces.get(str(row["label"])), "border": border.get(str(row["label"]))}
+                for row in rows]
     return [{**row, "shown": shown} for row in rows] if shown else rows
 
 
