@@ -128,7 +128,7 @@ def test_the_agreement_command_writes_its_picture_and_metrics(tmp_path):
     assert [row["name"] for row in rows][:2] == ["rectum", "urinary_bladder"]          # Dice 0 first, by name
     assert {row["name"]: row["dice"] for row in rows}["hip_left"] == "1"
     picture = iio.imread(tmp_path / "a.png")
-    assert picture.ndim == 3 and picture.shape[1] >= 3 * 96
+    assert picture.ndim == 3 and picture.shape[1] >= 4 * 96                   # three slices and the surface
     assert_bad_input(run("agreement", tmp_path / "ct.nii.gz", "--labels-from", tmp_path / "test", "--reference",
                          tmp_path / "absent", "-o", tmp_path / "b.png"), "--reference")
     assert not (tmp_path / "b.png").exists()

@@ -108,10 +108,13 @@ class Comparison:
             classes[box] = np.maximum(classes[box], here)
         return classes
 
+    def _surface(self, classes, box, size):
+        return _surface_of(self.volume, classes, box, size)
+
     def picture(self, rows, size=(256, 256), worst=4):
         """A sheet: for each of the ``worst`` structures of ``rows`` (:meth:`metrics`), its axial, coronal and
-        sagittal slices through the middle of both, it alone in :data:`CLASSES` with a legend; then the metrics
-        table.
+        sagittal slices through the middle of both and its surface from the front, it alone in :data:`CLASSES` with
+        a legend; then the metrics table.
         """
         from ..qc.qc import default_window
         from ..qc.sheet import sheet
@@ -131,12 +134,33 @@ class Comparison:
                 line.append(slice_picture(grey, pixel_mm, window, labels, CLASSES, "both", 0.45, size,
                                           legend=True))
                 words.append(f"{row['name'][:24]}, {plane}")
+            line.append(self._surface(classes, box, size))
+            words.append(f"{row['name'][:24]}, surface")
             pictures.append(line)
             captions.append(words)
         parts = [sheet(pictures, captions)]
         parts.append(metrics_picture(rows, parts[0].shape[1]))
         width = max(part.shape[1] for part in parts)
         return np.concatenate([np.pad(part, ((0, 0), (0, width - part.shape[1]), (0, 0))) for part in parts])
+
+
+def _surface_of(volume, classes, box, size):
+    """The surface of a structure's :data:`CLASSES` in its box (and a voxel around it), from the front, each voxel in
+    its class's colour: where the surfaces differ shows as test only or reference only.
+    """
+    from ..object.pipeline import PrepOptions, encode_volume
+    from ..object.prep import LabelSelection
+    from ..pictures._picture import RenderOptions, picture
+    from ..space.view import PRESETS
+
+    around = tuple(slice(max(b.start - 1, 0), b.stop + 1) for b in box)
+    table = {str(k): {"name": name, "colour": list(colour)} for k, (name, colour) in CLASSES.items()}
+    part = io.Volume(np.ascontiguousarray(classes[around]), volume.spacing, {"label_table": table})
+    if not part.values.any():
+        return np.zeros((*size, 3), np.uint8)
+    segments = encode_volume(part, PrepOptions(threshold=None, labels=LabelSelection()))
+    options = RenderOptions(size=tuple(size), legend=True)
+    return picture(segments, options.view(*PRESETS["anterior"]), options).rgb
 
 
 def metrics_picture(rows, width, line=14):
