@@ -227,3 +227,33 @@ def test_a_batch_of_damaged_copies_puts_the_worst_first_and_the_identical_last(t
     order = [page.index(f">{name}</div>") for name in copies]
     shown = [name for _, name in sorted(zip(order, copies, strict=True))]
     assert shown[0] == "emptied" and shown[-1] == "identical", shown
+
+
+def test_slices_and_sheet_take_a_reference(tmp_path):
+    """slices --reference shows both / labels only / reference only and the table; sheet --reference adds the
+    table to a QC sheet; without labels, with a crop, or on a sheet that is not a QC sheet, one line each."""
+    import imageio.v3 as iio
+    from test_cli import assert_bad_input, run
+
+    test_agreement_matches_structures_by_name_and_reports_one_sided_ones(tmp_path)     # writes the files
+    ct, common = tmp_path / "ct.nii.gz", ("--labels-from", tmp_path / "test", "--reference", tmp_path / "reference")
+    plain = run("slices", ct, "--labels-from", tmp_path / "test", "--size", "64", "-o", tmp_path / "plain.png")
+    agreed = run("slices", ct, *common, "--size", "64", "--legend", "-o", tmp_path / "agreed.png")
+    assert plain.exit_code == 0 and agreed.exit_code == 0, agreed.output
+    taller = iio.imread(tmp_path / "agreed.png")
+    assert taller.shape[0] > iio.imread(tmp_path / "plain.png").shape[0]            # the table under the slices
+    from voxrender.review.agreement import CLASSES
+
+    shown = {tuple(int(v) for v in c) for c in np.unique(taller.reshape(-1, 3), axis=0)}
+    # the legend's swatches: the hips agree, the bladder is the reference's alone (the test's rectum in its place
+    # is under it: where sides disagree, the reference-only class shows over the test-only one)
+    assert {CLASSES[1][1], CLASSES[3][1]} <= shown
+    result = run("sheet", ct, *common, "--slices", "axial", "--views", "anterior", "--size", "64",
+                 "-o", tmp_path / "sheet.png")
+    assert result.exit_code == 0, result.output
+    assert_bad_input(run("slices", ct, "--reference", tmp_path / "reference", "-o", tmp_path / "x.png"),
+                     "--reference", "--labels-from")
+    assert_bad_input(run("slices", ct, *common, "--crop", "0:10,0:10,0:10", "-o", tmp_path / "x.png"), "--crop")
+    assert_bad_input(run("sheet", ct, *common, "--views", "anterior", "-o", tmp_path / "x.png"), "--reference",
+                     "--slices or --projection")
+    assert not (tmp_path / "x.png").exists()

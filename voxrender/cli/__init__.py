@@ -556,7 +556,12 @@ def _dicom_study(input_path, options, wanted):
               help="Also save the picture as an RGB DICOM Secondary Capture in a new series of the source study.")
 @click.option("--dicom-study-from", type=click.Path(path_type=Path), metavar="DICOM_DIR",
               help="With --dicom-out: the DICOM series whose study the picture joins (default: INPUT's).")
-def slices_command(input_path, output_path, size, colour_table, legend, dicom, **options):
+@click.option("--reference", type=click.Path(path_type=Path), metavar="REF",
+              help="A reference segmentation the labels are held to: the slices show both / labels only / "
+                   "reference only, and the agreement's table follows.")
+@click.option("--tolerance-mm", default=2.0, show_default=True, type=click.FloatRange(0),
+              help="With --reference: the normalised surface Dice's tolerance.")
+def slices_command(input_path, output_path, size, colour_table, legend, dicom, reference, tolerance_mm, **options):
     """Draw axial, coronal and sagittal slices of INPUT with its labels over them, side by side, to a PNG.
 
     The slices cross at the volume centre, a point, or each label (a row per label); each is shown at its true
@@ -575,10 +580,16 @@ def slices_command(input_path, output_path, size, colour_table, legend, dicom, *
     slice_options = replace(_slice_options(options, planes=("axial", "coronal", "sagittal"), legend=legend),
                             size=parse.size(size))
     table = colours.read_colour_table(colour_table) if colour_table else None
-    study = load_study(input_path, _read_options(options), PrepOptions(None, crop, labels=selection), progress,
-                       encode=False)
+    metrics = None
+    if reference is not None:
+        study, metrics = _agreement_study(input_path, options, reference, crop, tolerance_mm)
+    else:
+        study = load_study(input_path, _read_options(options), PrepOptions(None, crop, labels=selection), progress,
+                           encode=False)
     rows = slice_pictures(study, slice_options, table)
     picture_rgb = sheet([[rgb for _, rgb in row] for row in rows], [[caption for caption, _ in row] for row in rows])
+    if metrics is not None:
+        picture_rgb = _with_metrics(picture_rgb, metrics)
     _write_with_dicom(output_path, picture_rgb, dicom, joins,
                       f"slices {', '.join(slice_options.planes)}"
                       + (f" with the labels of {options['labels_from'].name}" if options["labels_from"] else ""))
@@ -627,6 +638,31 @@ def agreement_command(input_path, labels_from, reference, output_path, metrics_o
     worst_row = rows[0]
     click.echo(f"{output_path}: {len(rows)} structures; the worst, {worst_row['name']}, has Dice "
                f"{worst_row['dice']:.3f}" + (f"; metrics in {metrics_out}" if metrics_out else ""))
+
+
+def _agreement_study(input_path, options, reference, crop, tolerance_mm):
+    """The study whose labels are the agreement of --labels-from with ``reference`` (both / labels only /
+    reference only), and the agreement's records.
+    """
+    from ..qc.study import Study
+    from ..review.agreement import CLASSES, Comparison
+
+    if not options.get("labels_from"):
+        raise InputError("a reference is held against labels: give them with --labels-from", parameter="reference")
+    if crop is not None:
+        raise InputError("the agreement is measured on the whole image: drop --crop", parameter="crop")
+    comparison = Comparison(input_path, options["labels_from"], reference, _read_options(options))
+    table = {str(k): {"name": name, "colour": list(colour)} for k, (name, colour) in CLASSES.items()}
+    return Study(comparison.volume, comparison.classes(), table), comparison.metrics(tolerance_mm)
+
+
+def _with_metrics(rgb, rows):
+    """``rgb`` with the agreement's table under it, both as wide as the wider."""
+    from ..review.agreement import metrics_picture
+
+    table = metrics_picture(rows, rgb.shape[1])
+    width = max(rgb.shape[1], table.shape[1])
+    return np.concatenate([np.pad(part, ((0, 0), (0, width - part.shape[1]), (0, 0))) for part in (rgb, table)])
 
 
 @main.command("encode")
@@ -919,7 +955,12 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
 @click.option("--per-label", is_flag=True, help="Rows of labels (one input with labels): all, then each alone.")
 @_slice_options_decorator
 @_render_options_decorator
-def sheet_command(inputs, output_path, views, view_list, angles, methods, per_label, **options):
+@click.option("--reference", type=click.Path(path_type=Path), metavar="REF",
+              help="With a QC sheet: a reference segmentation the labels are held to; its table follows.")
+@click.option("--tolerance-mm", default=2.0, show_default=True, type=click.FloatRange(0),
+              help="With --reference: the normalised surface Dice's tolerance.")
+def sheet_command(inputs, output_path, views, view_list, angles, methods, per_label, reference, tolerance_mm,
+                  **options):
     """Lay out pictures in a grid: one input's views x methods (--methods) or x labels (--per-label), or several
     inputs' views; with --slices or --projection, one study's QC sheet: its surfaces, projections and slices with
     the labels over them, captioned, and a table of its labels (name, colour, voxels, mL).
@@ -940,6 +981,9 @@ def sheet_command(inputs, output_path, views, view_list, angles, methods, per_la
         raise InputError("give --methods or --per-label, not both: a sheet has one kind of row")
     if (methods or per_label) and len(inputs) > 1:
         raise InputError(f"give one input for {'--methods' if methods else '--per-label'}, or several without it")
+    if reference is not None and slice_options is None and not render_options.projection:
+        raise InputError("a reference's table goes on a QC sheet: give --slices or --projection too",
+                         parameter="reference")
     if slice_options is not None or render_options.projection:
         if methods or per_label or len(inputs) > 1:
             raise InputError("a QC sheet (--slices, --projection) is of one study: give one input, without "
@@ -950,6 +994,14 @@ def sheet_command(inputs, output_path, views, view_list, angles, methods, per_la
         joins = _dicom_study(inputs[0], options, dicom)
         study = load_study(inputs[0], read, prepare, progress)
         rgb = qc_sheet(study, render_options, columns, slice_options, title=str(inputs[0]), progress=progress)
+        if reference is not None:
+            from ..review.agreement import Comparison
+
+            if not options.get("labels_from"):
+                raise InputError("a reference is held against labels: give them with --labels-from",
+                                 parameter="reference")
+            rgb = _with_metrics(rgb, Comparison(inputs[0], options["labels_from"], reference, read)
+                                .metrics(tolerance_mm))
         from ..outputs.secondary_capture import selection_words
 
         shows = [f"QC sheet of {', '.join(v.label for v in chosen)}"]

@@ -73,9 +73,9 @@ class Comparison:
         self.volume = image if isinstance(image, io.Volume) else (read or ReadOptions()).read(image)
         self.sides = [_on_grid(source, self.volume, read, parameter)
                       for source, parameter in ((test, "labels_from"), (reference, "reference"))]
-        self.structures = [_structures(values, meta) for values, meta in self.sides]
-        self.keys = list(dict.fromkeys([*self.structures[1], *self.structures[0]]))   # the reference's order first
         self.boxes = [_boxes(values, meta) for values, meta in self.sides]
+        self.structures = [_structures(boxes, meta) for boxes, (_, meta) in zip(self.boxes, self.sides, strict=True)]
+        self.keys = list(dict.fromkeys([*self.structures[1], *self.structures[0]]))   # the reference's order first
 
     def masks(self, key):
         """The structure ``key``'s box (slices of the image's grid) and its test and reference masks in it."""
@@ -209,12 +209,11 @@ def _on_grid(source, volume, read, parameter):
     return np.asarray(values), found.meta
 
 
-def _structures(values, meta):
-    """``{key: (label, name)}`` of the structures a label map holds (each structure of a set of codes too)."""
+def _structures(boxes, meta):
+    """``{key: (label, name)}`` of the structures a label map holds: those with a box (:func:`_boxes`), in order."""
     table = meta.get("label_table") or {}
-    present = label_sets.structure_counts(values, meta.get("label_sets") or {})
     found = {}
-    for label in present:
+    for label in sorted(boxes):
         name = (table.get(str(label)) or {}).get("name") or f"label {label}"
         found.setdefault(label_sets.label_key(name, label), (label, name))
     return found
