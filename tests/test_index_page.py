@@ -174,6 +174,7 @@ def test_every_link_is_a_file_in_the_folder(opened):
 def test_turntable_follows_the_pointer(opened):
     page, folder, errors = opened
     turntable = page.locator("img.turntable")
+    assert turntable.evaluate("img => img.preloaded === undefined")  # no frame fetched before the pointer comes
     turntable.scroll_into_view_if_needed()
     box = turntable.bounding_box()
     y = box["y"] + box["height"] / 2
@@ -194,6 +195,7 @@ def test_turntable_follows_the_pointer(opened):
     assert shown == [(folder / f"head/turn/frame_{k:02d}.png").as_uri() for k in (3, 7, 11, 5)]
     assert beyond == (folder / "head/turn/frame_11.png").as_uri()
     assert turntable.evaluate("img => img.complete && img.naturalWidth") == 96
+    assert turntable.evaluate("img => img.preloaded.length") == FRAMES        # fetched once it was reached
     assert errors == []
 
 

@@ -169,7 +169,7 @@ def write_index(path, studies, title="voxrender batch"):
     -----
     Every text from the studies is HTML-escaped and every path URL-quoted, so names, inputs and errors holding
     ``<``, ``&``, ``"``, ``#`` or ``%`` show as they are.  Thumbnails load lazily, as they scroll into view;
-    turntable frames load at once, so that turning never waits for a file.  The page is written atomically.
+    a turntable's frames when the pointer first comes to it.  The page is written atomically.
 
     Examples
     --------
@@ -321,11 +321,18 @@ tr.selected>td{background:#e8f0fe}tr.selected>td:first-child{box-shadow:inset 3p
 
 # The turntable: the frame is the pointer's place across the picture (left edge the first frame, right edge the
 # last), so a mouse turns it by moving over it and a finger or pen by dragging (captured, so it may leave the
-# picture); the arrow keys step it.  The frames are loaded up front and kept, so a turn never waits for a file.
+# picture); the arrow keys step it.  Its frames are fetched when the pointer or the focus first comes to it, and
+# kept: a page of many studies loads none of them up front.
 _SCRIPT = r"""
 document.querySelectorAll("img.turntable").forEach(function (img) {
   var frames = JSON.parse(img.dataset.frames), index = 0;
-  img.preloaded = frames.map(function (src) { var frame = new Image(); frame.src = src; return frame; });
+  function load() {              // the frames, fetched once the pointer or the keyboard comes to the turntable
+    if (!img.preloaded) {
+      img.preloaded = frames.map(function (src) { var frame = new Image(); frame.src = src; return frame; });
+    }
+  }
+  img.addEventListener("pointerenter", load);
+  img.addEventListener("focus", load);
   function show(i) {
     i = Math.min(frames.length - 1, Math.max(0, i));
     if (i !== index) { index = i; img.src = frames[i]; }
