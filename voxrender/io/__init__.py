@@ -58,11 +58,12 @@ from ._shared import (
     identity_progress,
     natural_key,
     real_numbers,
+    slices_at,
     some_names,
 )
 
 __all__ = ["Volume", "RawLayout", "Reader", "READERS", "FORMATS", "read_volume", "open_stack", "detect_format",
-           "natural_key", "check_spacing"]
+           "natural_key", "check_spacing", "slices_at"]
 
 # The formats by name, in the order ``format="auto"`` tries them: a Zarr store before DICOM (its folders are told by a
 # metadata file, where the DICOM sniff would open every chunk), a folder of DICOM files before one of images (an

@@ -13,6 +13,7 @@ import numpy as np
 
 from .._shared import label_sets
 from ..errors import InputError
+from .slabs import blocks, kept_parts, kept_range, resample_slices, resampled_shape
 
 
 @dataclass(frozen=True)
@@ -89,79 +90,13 @@ def crop(values, region=None):
     return values[tuple(region)]
 
 
-def _grid_count(n, spacing, voxel):
-    """How many samples of size ``voxel`` fit between the first and last of ``n`` samples ``spacing`` apart."""
-    return int(math.floor((n - 1) * spacing / voxel + 1e-9)) + 1
-
-
-def resampled_shape(shape, spacing, voxel):
-    """Shape ``(nz, ny, nx)`` after resampling to cubic voxels of size ``voxel``.
-
-    Sample ``k`` of the new grid sits at ``k * voxel`` mm from the first sample,
-    as far as the last input sample reaches (93 slices 1 mm apart at 0.64 mm give
-    the paper's 144).
-
-    >>> resampled_shape((93, 10, 10), (0.64, 0.64, 1.0), 0.64)
-    (144, 10, 10)
-    """
-    return tuple(_grid_count(n, s, voxel) for n, s in zip(shape, spacing[::-1], strict=True))
-
-
-def _resample_slices(values, spacing, voxel, progress=None, ks=None):
-    """Yield the slices of ``values`` resampled to cubic voxels of ``voxel`` mm (float32): all of them, or those
-    numbered ``ks`` (a range), for which ``values[i]`` is asked only of the slices around them (a slab).
-
-    Linear interpolation: in-plane by :func:`skimage.transform.warp`, across slices
-    by blending the two neighbouring slices.  Only two in-plane slices are kept.
-    """
-    from skimage.transform import AffineTransform, warp
-
-    sx, sy, sz = spacing
-    nz, ny, nx = values.shape
-    out_z, out_y, out_x = resampled_shape(values.shape, spacing, voxel)
-    inplane_same = math.isclose(sx, voxel) and math.isclose(sy, voxel)
-    to_input = AffineTransform(scale=(voxel / sx, voxel / sy))
-    cache = {}
-
-    def plane(i):
-        if i not in cache:
-            if len(cache) > 1:
-                cache.pop(min(cache))
-            data = np.asarray(values[i], dtype=np.float32)
-            if not inplane_same:           # a float32 slice may be a read-only map of the file: warp takes no such
-                # linear interpolation stays within its inputs: no clip (whose nanmin warns on an all-NaN slice)
-                data = warp(np.require(data, requirements="W"), to_input, output_shape=(out_y, out_x), order=1,
-                            mode="edge", preserve_range=True, clip=False).astype(np.float32)
-            cache[i] = data
-        return cache[i]
-
-    ks = range(out_z) if ks is None else ks
-    for k in (progress(ks, len(ks), "resampling") if progress else ks):
-        i, weight = input_slice(k, voxel, sz, nz)
-        if weight < 1e-6 or i == nz - 1:
-            yield plane(i)
-        else:
-            yield (1 - weight) * plane(i) + weight * plane(i + 1)
-
-
-def input_slice(k, voxel, spacing_z, nz):
-    """The input slice ``i`` at or below slice ``k`` of the cubic grid, and the weight of slice ``i + 1``.
-
-    >>> input_slice(3, 0.5, 1.0, 10)
-    (1, 0.5)
-    """
-    position = k * voxel / spacing_z
-    i = min(int(math.floor(position + 1e-9)), nz - 1)
-    return i, position - i
-
-
 def resample(values, spacing, voxel):
     """``values`` resampled to cubic voxels of ``voxel`` mm, as one float32 array.
 
     >>> resample(np.arange(8.0).reshape(2, 2, 2), (1, 1, 2), 1).shape
     (3, 2, 2)
     """
-    return np.stack(list(_resample_slices(values, spacing, voxel)))
+    return np.stack(list(resample_slices(values, spacing, voxel)))
 
 
 def otsu_threshold(values, padding=None):
@@ -176,13 +111,13 @@ def otsu_threshold(values, padding=None):
     True
     """
     values = np.asarray(values)
-    low, high, whole = _kept_range(values, padding)
+    low, high, whole = kept_range(values, padding)
     check_range(low, high, padding)
     edges = otsu_bins(low, high, values.dtype)
     if whole:                                   # every value counts: one histogram, no copy
         counts = np.histogram(values, bins=edges)[0]
     else:
-        counts = sum(np.histogram(part, bins=edges)[0] for part in _kept_parts(values, padding))
+        counts = sum(np.histogram(part, bins=edges)[0] for part in kept_parts(values, padding))
     return otsu_of_histogram(counts, edges)
 
 
@@ -227,31 +162,7 @@ def value_range(values, padding=None):
     >>> value_range(np.array([np.nan, -3024, -1000, 40, np.inf]), padding=-3024)
     (-1000.0, 40.0)
     """
-    return _kept_range(np.asarray(values), padding)[:2]
-
-
-def _kept_range(values, padding):
-    """:func:`value_range`, and whether it left nothing out (then the values are used as they are, uncopied)."""
-    if not values.size:
-        return None, None, False
-    low, high = float(np.min(values)), float(np.max(values))
-    if math.isfinite(low) and math.isfinite(high) and (padding is None or not low <= padding <= high):
-        return low, high, True
-    ranges = [(part.min(), part.max()) for part in _kept_parts(values, padding) if part.size]
-    if not ranges:
-        return None, None, False
-    return float(min(lo for lo, _ in ranges)), float(max(hi for _, hi in ranges)), False
-
-
-def _kept_parts(values, padding, voxels=1 << 24):
-    """The values of a few slices at a time without their NaN, inf and ``padding`` voxels (each part a copy, so
-    that no whole-volume one is made).
-    """
-    for block in _blocks(values, voxels):
-        keep = np.isfinite(block) if block.dtype.kind in "fc" else np.ones(block.shape, bool)
-        if padding is not None:
-            keep &= block != padding
-        yield block[keep]
+    return kept_range(np.asarray(values), padding)[:2]
 
 
 def non_finite_counts(values):
@@ -261,10 +172,10 @@ def non_finite_counts(values):
     {'nan': 1, 'inf': 2}
     """
     values = np.asarray(values)
-    if values.dtype.kind not in "fc" or _kept_range(values, None)[2]:
+    if values.dtype.kind not in "fc" or kept_range(values, None)[2]:
         return {}
-    nan = sum(int(np.count_nonzero(np.isnan(part))) for part in _blocks(values))
-    inf = sum(int(np.count_nonzero(np.isinf(part))) for part in _blocks(values))
+    nan = sum(int(np.count_nonzero(np.isnan(part))) for part in blocks(values))
+    inf = sum(int(np.count_nonzero(np.isinf(part))) for part in blocks(values))
     return {key: count for key, count in (("nan", nan), ("inf", inf)) if count}
 
 
@@ -309,13 +220,6 @@ def _nothing_selected(volume, values, what, parameter):
         return InputError(f"{source}: every voxel is NaN or infinite, so no threshold or window selects an object")
     return InputError(f"{what} holds no voxel of {source}, whose values range from {low:g} to {high:g}; choose a "
                       "threshold or window in that range", parameter=parameter)
-
-
-def _blocks(values, voxels=1 << 24):
-    """``values`` a few slices at a time (views)."""
-    values = np.atleast_1d(values)
-    step = max(1, voxels // max(1, values[0].size))
-    return (values[start:start + step] for start in range(0, len(values), step))
 
 
 def bin_slices(values, n):
@@ -452,9 +356,9 @@ def _windowed(values, spacing, windows, voxel, resample, progress):
     size and the spacing of that grid.
     """
     voxel, out_shape = cubic_grid(values.shape, spacing, voxel, resample)
-    planes = _resample_slices(values, spacing, voxel, progress) if out_shape is not None else values
+    planes = resample_slices(values, spacing, voxel, progress) if out_shape is not None else values
     labels = np.empty(out_shape or values.shape, np.uint8)
-    every_value_finite = values.dtype.kind not in "fc" or _kept_range(values, None)[2]
+    every_value_finite = values.dtype.kind not in "fc" or kept_range(values, None)[2]
     for layer, plane in zip(labels, planes, strict=True):
         select_layer(plane, windows, layer, every_value_finite)
     return labels, voxel, (voxel,) * 3 if out_shape is not None else tuple(float(s) for s in spacing)

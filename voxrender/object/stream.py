@@ -28,7 +28,7 @@ import numpy as np
 
 from .. import io
 from ..errors import InputError
-from . import prep, segments, vxs
+from . import prep, segments, slabs, vxs
 from .normals import stencil_radius, surface_normals
 from .pipeline import (
     PrepOptions,
@@ -163,7 +163,7 @@ def _open(source, read, token=None, spool=None):
             stored = stack.stack
 
             def read_slices(z0, z1):
-                return io._shared.slices_at(spool, 0, stored.shape, stored.dtype, z0, z1)
+                return io.slices_at(spool, 0, stored.shape, stored.dtype, z0, z1)
 
             stack.stack = replace(stored, read_slices=read_slices, sequential=False)
         _STACKS[key] = stack
@@ -257,13 +257,13 @@ def _survey(stack, region, bin, prepare, slab_voxels=SLAB_VOXELS):
             values = _binned(stack, region, bin, numbers)
             sample += [_thinned(plane) for k, plane in zip(numbers, values, strict=True) if k % SAMPLE_STEP == 0]
             if counted:
-                for part in prep._blocks(values, 1 << 23):
+                for part in slabs.blocks(values, 1 << 23):
                     counts += np.bincount(part.ravel().astype(np.int32) + offset, minlength=len(counts))
                 continue
-            lo, hi, _ = prep._kept_range(values, padding)
+            lo, hi, _ = slabs.kept_range(values, padding)
             if lo is not None:
                 low, high = (lo, hi) if low is None else (min(low, lo), max(high, hi))
-            least, _, all_finite = prep._kept_range(values, None)
+            least, _, all_finite = slabs.kept_range(values, None)
             finite &= all_finite
             if least is not None:
                 lowest = least if lowest is None else min(lowest, least)
@@ -287,7 +287,7 @@ def _survey(stack, region, bin, prepare, slab_voxels=SLAB_VOXELS):
             histogram = np.zeros(len(edges) - 1, np.int64)
             for numbers in _runs(stack, binned_slices, bin, region, slab_voxels):
                 values = _binned(stack, region, bin, numbers)
-                for part in prep._kept_parts(values, padding):
+                for part in slabs.kept_parts(values, padding):
                     histogram += np.histogram(part, bins=edges)[0]
         threshold = prep.otsu_of_histogram(histogram, edges)
     sample = np.concatenate([np.asarray(s).ravel() for s in sample])
@@ -410,15 +410,15 @@ def _slab(plan, stack, a, b):
     nz = (plan.region[0].stop - plan.region[0].start) // plan.bin
     if plan.resampled:
         # the input slices the layers blend, and those the normals' B-spline reaches (grey_sampler), with room
-        lo = prep.input_slice(max(0, mask_first - 1), plan.voxel, plan.binned_spacing[2], nz)[0]
-        hi = prep.input_slice(min(plan.grid[0] - 1, mask_last), plan.voxel, plan.binned_spacing[2], nz)[0]
+        lo = slabs.input_slice(max(0, mask_first - 1), plan.voxel, plan.binned_spacing[2], nz)[0]
+        hi = slabs.input_slice(min(plan.grid[0] - 1, mask_last), plan.voxel, plan.binned_spacing[2], nz)[0]
         grey_first, grey_last = max(0, lo - 2), min(nz, hi + 4)
     else:
         grey_first, grey_last = mask_first, mask_last
     grey = _binned(stack, plan.region, plan.bin, range(grey_first, grey_last))
     if plan.resampled:
         shifted = _Shifted(grey, grey_first, nz)
-        planes = prep._resample_slices(shifted, plan.binned_spacing, plan.voxel, ks=range(mask_first, mask_last))
+        planes = slabs.resample_slices(shifted, plan.binned_spacing, plan.voxel, ks=range(mask_first, mask_last))
     else:
         planes = grey
     layers = np.empty((mask_last - mask_first,) + plan.grid[1:], np.uint8)
