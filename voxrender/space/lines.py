@@ -370,10 +370,6 @@ class Stepper:
         self.e_z = np.where(to_26, self.e_xz + 0.5 * c, self.e_z)                         # Eq. 13
         self.six = six.copy()
 
-    def steps_left(self):
-        """26-steps from each line's voxel to the one holding its end point (along the driving axis)."""
-        return np.floor(self.offset[:, 0] + self.extent[:, 0] + 0.5).astype(np.int64) - self.q[:, 0]
-
     def jump(self, count, within=None):
         """Take ``count[i]`` 26-steps at once on line ``i`` (0 for none), in closed form.
 
