@@ -54,7 +54,8 @@ samples: $(VENV)/.installed
 golden: $(VENV)/.installed
 	$(BIN)/python -m tests.golden
 
-# The mutation gate: hand-written bugs, one at a time; fails if the suite misses one (a few minutes).
+# The mutation gate: hand-written bugs, one at a time; fails if the suite misses one (the suite once, then each
+# mutant until its first failing test: minutes).
 mutants: $(VENV)/.installed
 	$(BIN)/python tests/mutants.py
 
