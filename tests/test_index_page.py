@@ -314,3 +314,38 @@ def test_a_batch_takes_the_verdicts_of_an_earlier_review(tmp_path, browser):
 
     assert_bad_input(run("batch", tmp_path / "ball.npy", "--threshold", "500", "--verdicts", tmp_path / "bad.csv",
                          "-o", tmp_path / "third"), "--verdicts", "'maybe' is not a verdict")
+
+
+def test_search_and_filters_show_what_they_say_and_the_keys_follow(tmp_path, browser):
+    """The filters (flagged, no verdict yet, failed, verdict fail) and the search (a study's name or a label) show
+    exactly their studies, each option counting them; j and k move among the studies shown."""
+    write_index(tmp_path / "index.html", make_batch(tmp_path))
+    errors = []
+    page = _open(browser.new_context(), tmp_path / "index.html", errors)
+
+    def shown():
+        return page.evaluate("() => [...document.querySelectorAll('tr[data-study]')].filter(r => !r.hidden)"
+                             ".map(r => r.dataset.study)")
+
+    everything = shown()
+    assert len(everything) == 4
+    page.keyboard.press("f")                                            # head: fail
+    for value, expected in [("flagged", [s for s in everything if s != "head"]), ("failed", ["broken"]),
+                            ("fail", ["head"]), ("unreviewed", [s for s in everything if s != "head"]),
+                            ("all", everything)]:
+        page.locator("#show").select_option(value)
+        assert shown() == expected, value
+        label = page.locator(f'#show option[value="{value}"]').inner_text()
+        assert label.endswith(f"({len(expected)})"), label
+    page.locator("#search").fill("skull")                               # a label's name
+    assert shown() == ["head", "abdomen"]
+    page.locator("#search").fill("CHEST #2")                            # a study's, whatever the case
+    assert shown() == ["chest #2 100%"]
+    page.locator("#search").fill("")
+    page.locator("#search").press("Enter")                             # the keys go back to the page
+    page.locator("#show").select_option("failed")
+    assert page.locator("tr.selected").get_attribute("data-study") == "broken"   # the selection follows the filter
+    page.locator("#show").select_option("flagged")
+    page.keyboard.press("k")
+    assert page.locator("tr.selected").get_attribute("data-study") == shown()[-2]
+    assert errors == []

@@ -373,7 +373,7 @@ document.getElementById("only-flagged").addEventListener("change", function (eve
     var done = rows.filter(function (row) { return row.dataset.verdict; }).length;
     document.querySelector("#reviewed b").textContent = done;
   }
-  function give(row, verdict) { row.dataset.verdict = verdict; keep(row); count(); }
+  function give(row, verdict) { row.dataset.verdict = verdict; keep(row); count(); filter(); }
   function select(k) {
     if (!rows.length) { return; }
     k = Math.min(rows.length - 1, Math.max(0, k));
@@ -382,6 +382,41 @@ document.getElementById("only-flagged").addEventListener("change", function (eve
     rows[k].classList.add("selected");
     rows[k].scrollIntoView({block: "nearest"});
   }
+  function step(by) {            // the next shown row that way, the selection staying when there is none
+    for (var k = selected + by; k >= 0 && k < rows.length; k += by) {
+      if (!rows[k].hidden) { select(k); return; }
+    }
+  }
+  // What is shown: the rows that pass the filter and hold the search's words in their name, input or labels.
+  var filters = {
+    all: function () { return true; },
+    flagged: function (row) { return !row.classList.contains("clean"); },
+    unreviewed: function (row) { return !row.dataset.verdict; },
+    failed: function (row) { return row.classList.contains("failed"); },
+    fail: function (row) { return row.dataset.verdict === "fail"; }
+  };
+  var show = document.getElementById("show"), search = document.getElementById("search");
+  function filter() {
+    var words = search.value.toLowerCase().split(/\s+/).filter(Boolean);
+    rows.forEach(function (row) {
+      var text = (row.dataset.study + " " + row.dataset.input + " " + row.dataset.labels).toLowerCase();
+      row.hidden = !(filters[show.value](row) && words.every(function (w) { return text.indexOf(w) >= 0; }));
+    });
+    [].forEach.call(show.options, function (option) {
+      var n = rows.filter(filters[option.value]).length;
+      option.textContent = option.textContent.replace(/ \(\d+\)$/, "") + " (" + n + ")";
+    });
+    if (selected >= 0 && rows[selected].hidden) {
+      var first = rows.findIndex(function (row) { return !row.hidden; });
+      if (first >= 0) { select(first); }
+    }
+  }
+  show.addEventListener("change", filter);
+  search.addEventListener("input", filter);
+  search.addEventListener("keydown", function (event) {   // typing searches; Enter or Escape hands the keys back
+    if (event.key === "Enter" || event.key === "Escape") { search.blur(); }
+    event.stopPropagation();
+  });
   rows.forEach(function (row) {
     var earlier = stored(row);
     if (earlier) {
@@ -409,7 +444,7 @@ document.getElementById("only-flagged").addEventListener("change", function (eve
     var row = rows[selected];
     var moves = {j: 1, ArrowDown: 1, k: -1, ArrowUp: -1};
     var verdicts = {p: "pass", f: "fail", u: "unsure"};
-    if (event.key in moves) { event.preventDefault(); select(selected + moves[event.key]); }
+    if (event.key in moves) { event.preventDefault(); step(moves[event.key]); }
     else if (event.key in verdicts) { event.preventDefault(); give(row, verdicts[event.key]); }
     else if (event.key === "n") { event.preventDefault(); row.querySelector("input.note").focus(); }
   });
@@ -471,6 +506,7 @@ document.getElementById("only-flagged").addEventListener("change", function (eve
         keep(row);
       });
       count();
+      filter();
       picker.value = "";
     });
   });
@@ -486,6 +522,7 @@ document.getElementById("only-flagged").addEventListener("change", function (eve
   });
   count();
   select(0);
+  filter();
 })();
 """
 
@@ -496,6 +533,10 @@ _PAGE = """<!doctype html>
 <div class="summary">{summary}<label><input type="checkbox" id="only-flagged"> only studies with a flag</label>
 <label>order <select id="order"><option value="worst">worst first</option><option value="name">by name</option>
 </select></label>
+<label>show <select id="show"><option value="all">all</option><option value="flagged">flagged</option>
+<option value="unreviewed">no verdict yet</option><option value="failed">failed</option>
+<option value="fail">verdict fail</option></select></label>
+<input type="search" id="search" placeholder="study or label" size="14">
 <label>reviewer <input type="text" id="reviewer" size="8"></label>
 <button type="button" data-action="export">export verdicts.csv</button>
 <button type="button" data-action="import">import</button><input type="file" id="import-file" accept=".csv" hidden>
