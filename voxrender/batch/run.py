@@ -994,8 +994,16 @@ def _study_rows(items, rows, study_errors, out_dir, flags=()):
         studies.append(StudyRow(item.name, item.input, error, relative(sheet) if sheet and sheet.is_file() else None,
                                 [] if turning else pictures, [path for _, path in pictures] if turning else [],
                                 labels, next((json.loads(row["overlaps"]) for row in own if row.get("overlaps")), []),
-                                sum(seconds) if seconds else None, [f for f in flags if f["study"] == item.name]))
+                                sum(seconds) if seconds else None, *_flags_of(item.name, flags)))
     return studies
+
+
+def _flags_of(name, flags):
+    """A study's flags in words and their severity, as the index page takes them."""
+    from ..review.flags import in_words, severity
+
+    own = [f for f in flags if f["study"] == name]
+    return [in_words(f) for f in own], severity(own) if own else ()
 
 
 def _write_sheet(path, items, rows):

@@ -45,9 +45,11 @@ class StudyRow:
         ``{"names": [a, b], "voxels": int}``: pairs of labels that claimed the same voxels.
     seconds : float, optional
         How long the study took.
-    flags : list of dict
-        Its cohort flags (:func:`voxrender.review.flags.cohort_flags`): they put it first, the worst first, and say
-        why in words.
+    flags : list of str
+        Its cohort flags in words (:func:`voxrender.review.flags.in_words`): a flagged study comes first.
+    severity : tuple, optional
+        How bad its flags are, smaller worse (:func:`voxrender.review.flags.severity`): the flagged studies are
+        shown the worst first.
     verdict, note : str
         An earlier reviewer's verdict (``pass``, ``fail``, ``unsure`` or empty) and note (:func:`read_verdicts`);
         the browser's own, kept in its local storage, come over them.
@@ -63,6 +65,7 @@ class StudyRow:
     overlaps: list = ()
     seconds: float | None = None
     flags: list = ()
+    severity: tuple = ()
     verdict: str = ""
     note: str = ""
 
@@ -179,14 +182,11 @@ def write_index(path, studies, title="voxrender batch"):
     >>> "head &amp; neck" in (folder / "index.html").read_text()
     True
     """
-    from ..review.flags import severity
-
     studies = list(studies)
     missing = missing_labels(studies)
     # the flagged studies first, the worst first (the lowest Dice, else the most flags and the largest |z|); the
     # others in the batch's order
-    order = sorted(range(len(studies)), key=lambda k: (not studies[k].flags, severity(studies[k].flags)
-                                                        if studies[k].flags else (), k))
+    order = sorted(range(len(studies)), key=lambda k: (not studies[k].flags, tuple(studies[k].severity), k))
     rows = [_row(number, studies[k], missing.get(studies[k].name, [])) for number, k in enumerate(order, 1)]
     counts = [(len(studies), "studies", ""),
               (sum(bool(study.flags) for study in studies), "flagged", "warn"),
@@ -230,9 +230,7 @@ def _row(number, study, missing):
     if study.overlaps:
         flags.append(f'<span class="flag warn">overlap {len(study.overlaps)}</span>')
     if study.flags:
-        from ..review.flags import in_words
-
-        reasons = [in_words(flag) for flag in study.flags]
+        reasons = list(study.flags)
         flags.append(f'<span class="flag warn" title="{_text("; ".join(reasons))}">flags {len(reasons)}</span>')
         flags += [f'<div class="reason">{_text(reason)}</div>' for reason in reasons[:6]]
 
