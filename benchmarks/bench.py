@@ -48,6 +48,7 @@ import numpy as np
 
 from benchmarks import big_stack, compile_bytecode, studies
 from benchmarks.agreement import bench_agreement
+from benchmarks.index_page import bench_index_page
 from benchmarks.masks import bench_mask_folder
 from benchmarks.studies import HERE
 from voxrender import io
@@ -563,6 +564,10 @@ def markdown(results):
                       f"MB), as TotalSegmentator writes them: {m['mask_folder_s']:.1f} s; "
                       f"the same labels as one `.nii.gz` ({m['one_file_mb']:.0f} MB): {m['one_file_s']:.2f} s "
                       f"({m['ratio']:.0f}x; medians, same run)", ""]
+    if results.get("index_page"):
+        i = results["index_page"]
+        lines[2:2] = [f"Writing the index page of {i['studies']:,} studies from their rows: {i['seconds']:.2f} s, "
+                      f"{i['megabytes']:.1f} MB ({i['bytes_per_study']:.0f} bytes a study; median, same run)", ""]
     if results.get("agreement"):
         a = results["agreement"]
         if "skipped" in a:
@@ -762,6 +767,7 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True, big=True):
             "read": bench_read(path, volume, max(1, repeat // 2)),
             "mask_folder": bench_mask_folder(max(1, repeat // 2)),
             "agreement": bench_agreement(path, max(1, repeat // 2)),
+            "index_page": bench_index_page(10_000, max(1, repeat // 2)),
             "views": bench_views(encoded, repeat, peer=peer),
             "skin": {"voxels": skin.segments.voxel_count, "segments": skin.segments.segment_count,
                      "views": bench_views(skin, repeat, views=PAPER_VIEWS)},

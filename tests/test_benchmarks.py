@@ -199,3 +199,10 @@ def test_agreement_section_runs_small_and_agrees_with_surface_distance(tmp_path)
     for case in result["cases"].values():
         assert case["structures"] > 0 and case["largest_difference"] < 1e-6 and case["speedup"] > 0
     assert result["cases"]["3 tissues filling the head"]["structures"] == 3
+
+
+def test_index_page_section_runs_small():
+    from benchmarks.index_page import bench_index_page
+
+    result = bench_index_page(studies=60, repeat=1)
+    assert result["studies"] == 60 and result["seconds"] > 0 and result["bytes_per_study"] > 100
