@@ -10,8 +10,8 @@ from ._render import DEFAULT_METHOD
 from .errors import InputError
 from .io import Volume, check_spacing
 from .io._shared import real_numbers
-from .object.pipeline import PrepOptions, ReadOptions, encode_volume, load_segments
-from .object.prep import LabelSelection, otsu_threshold
+from .object.pipeline import AUTO, PrepOptions, ReadOptions, encode_volume, load_segments
+from .object.prep import LabelSelection
 from .pictures._picture import RenderOptions, picture
 from .space.view import PRESETS, View
 
@@ -65,8 +65,8 @@ def snapshot(source, *, threshold=None, view="anterior", labels=None, spacing=No
     alpha, beta, gamma, size, scale = _view(view, size, scale)
     render_options = RenderOptions(method=method, size=size, scale=scale, **options)
     selection = _labels(labels, spacing)
-    if threshold is None and selection is None:      # a mask is its ones; grey values split by Otsu's threshold
-        threshold = 1 if getattr(source, "dtype", None) == np.bool_ else otsu_threshold
+    if threshold is None:                             # a mask is its ones; else PrepOptions decides (Otsu's)
+        threshold = 1 if selection is None and getattr(source, "dtype", None) == np.bool_ else AUTO
     prepare = PrepOptions(threshold=threshold, labels=selection)
     if isinstance(source, (str, Path)):
         read = ReadOptions(spacing=None if spacing is None else check_spacing(spacing))

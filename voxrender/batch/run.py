@@ -48,7 +48,7 @@ from .._shared.files import atomic_output, check_folder_writable, remove_partial
 from .._shared.text import from_spreadsheet_cell, spreadsheet_cell
 from ..errors import InputError
 from ..object.pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
-from ..object.prep import LabelSelection, otsu_threshold
+from ..object.prep import LabelSelection
 from ..outputs import output
 from ..outputs.output_kinds import OUTPUTS, fields_per_output
 from ..pictures._picture import Outputs, RenderOptions, about, picture, write_outputs
@@ -320,8 +320,7 @@ def items_from(inputs, manifest_rows, read, prepare, options, views, patterns, p
             item_prepare = prepare
             if str(row.get("labels") or "").strip():
                 chosen = prepare.labels.chosen if prepare.labels else None
-                item_prepare = replace(prepare, labels=LabelSelection(chosen, True, Path(str(row["labels"]))),
-                                       threshold=None if prepare.threshold is otsu_threshold else prepare.threshold)
+                item_prepare = replace(prepare, labels=LabelSelection(chosen, True, Path(str(row["labels"]))))
             if str(row.get("threshold") or "").strip():        # on top of the row's labels, when it gives both
                 item_prepare = replace(item_prepare, threshold=parse.threshold(str(row["threshold"])))
             item_options = options

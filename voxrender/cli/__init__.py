@@ -26,6 +26,7 @@ from ..batch import run as batch
 from ..errors import InputError
 from ..object import prep, segments
 from ..object.pipeline import (
+    AUTO,
     Encoded,
     PrepOptions,
     ReadOptions,
@@ -163,7 +164,7 @@ def _prep_options(options):
     elif options["threshold"] is not None:
         threshold = parse.threshold(options["threshold"])
     else:
-        threshold = None if labels or tissues else prep.otsu_threshold
+        threshold = AUTO                                   # PrepOptions decides: Otsu's, or none with labels
     several = tuple((name, tissue.window, tissue.colour) for name, tissue in tissues) if len(tissues) > 1 else ()
     crop = parse.crop(options["crop"]) if options["crop"] else None
     return PrepOptions(threshold, crop, options["voxel"], options["resample"], options["min_object"], labels, several,
@@ -801,7 +802,7 @@ def _describe(path, volume, prepare):
     if prepare.labels is not None:                                         # an image and its label map
         summary.update(_describe_pairing(volume, prepare.labels.source, prepare.crop))
         return summary
-    threshold = suggested if callable(prepare.threshold) or prepare.threshold is None else prepare.threshold
+    threshold = suggested if callable(prepare.selecting) or prepare.selecting is None else prepare.selecting
     mask, info = prep.binarize(volume, threshold, crop=prepare.crop, voxel=prepare.voxel,
                                resample=prepare.resample, min_object=prepare.min_object)
     encoded = segments.encode(mask)

@@ -46,6 +46,9 @@ class ReadOptions:
                               reorient=self.reorient, progress=progress, run=self.run)
 
 
+AUTO = "auto"        # PrepOptions.threshold when none is given: decided once, by PrepOptions.selecting
+
+
 @dataclass(frozen=True)
 class PrepOptions:
     """How to select the object (see :func:`voxrender.object.prep.binarize` and
@@ -55,10 +58,15 @@ class PrepOptions:
     ``labels`` selects labels of a label map: the input itself, or a map paired with it
     (``labels.source``), and then an explicit ``threshold`` also applies to the input's grey values.
     ``tissues`` makes one object of several value windows, each a label with its name and colour
-    (:func:`voxrender.object.prep.classify`).
+    (:func:`voxrender.object.prep.classify`).  Left ``"auto"``, the threshold is what :attr:`selecting` says: Otsu's
+    of the grey values, or none when labels or tissues make the object; it stays so through ``replace``, so that
+    labels given later (a manifest's row) drop it without being told.
+
+    >>> PrepOptions().selecting is prep.otsu_threshold, PrepOptions(labels=prep.LabelSelection()).selecting
+    (True, None)
     """
 
-    threshold: float | prep.Window | Callable | None = prep.otsu_threshold
+    threshold: float | prep.Window | Callable | str | None = AUTO
     crop: tuple | None = None
     voxel: float | None = None
     resample: bool = True
@@ -68,7 +76,19 @@ class PrepOptions:
     bin: int = 1               # mean binning of bin x bin x bin voxels, after the crop: a preview of a huge stack
     measure_labels: bool = False   # also each label's pieces and whether it touches the edge (a batch's flags)
 
+    @property
+    def selecting(self):
+        """The threshold that selects the grey values: the one given, else (``"auto"``) Otsu's, or none when labels
+        or tissues make the object.
+        """
+        if isinstance(self.threshold, str) and self.threshold == AUTO:
+            return None if self.labels is not None or self.tissues else prep.otsu_threshold
+        return self.threshold
+
     def __post_init__(self):
+        if isinstance(self.threshold, str) and self.threshold != AUTO:
+            raise InputError(f"{self.threshold!r} is not a threshold; give a number, a window, a function of the "
+                             f"values, None, or {AUTO!r}", parameter="threshold")
         if self.voxel is not None and not (self.voxel > 0 and math.isfinite(self.voxel)):
             raise InputError(f"{self.voxel} must be a positive size in mm", parameter="voxel")
         if self.min_object < 0:
@@ -231,7 +251,7 @@ def encode_volume(volume, prepare=None, read=None, progress=None, source=None):
             for k, (name, _, colour) in enumerate(prepare.tissues, 1) if k in present})
         encoded.normals = _grey_normals(volume, labels > 0, info, prepare)
     elif prepare.labels is None:
-        mask, info = prep.binarize(volume, prepare.threshold, crop=prepare.crop, voxel=prepare.voxel,
+        mask, info = prep.binarize(volume, prepare.selecting, crop=prepare.crop, voxel=prepare.voxel,
                                    resample=prepare.resample, min_object=prepare.min_object, progress=progress)
         encoded = segments.encode(mask, info["spacing"], {**meta, "threshold": info["threshold"],
                                                           "voxel_mm": info["voxel"]})
@@ -267,7 +287,7 @@ def _encode_labels(volume, read, prepare, meta, progress):
     elif selection.source is not None:
         label_name = selection.source
         label_volume = read_labels(selection.source, volume, read)
-    elif prepare.threshold is not None:
+    elif prepare.selecting is not None:
         raise InputError("a label map is selected by its labels, not by a threshold: drop it, or give the label map "
                          "as the labels of the image it was made from", parameter="threshold")
     if selection.source is not None:
@@ -288,8 +308,8 @@ def _encode_labels(volume, read, prepare, meta, progress):
         meta["set_aside"] = info["set_aside"]
         warnings.warn(f"{names} is left out of the surface: it holds the patient's outline and would hide the "
                       "structures inside it (draw it with --with-body, or by choosing its label)", stacklevel=2)
-    if selection.source is not None and prepare.threshold is not None:
-        mask, found = prep.binarize(volume, prepare.threshold, crop=prepare.crop, voxel=prepare.voxel,
+    if selection.source is not None and prepare.selecting is not None:
+        mask, found = prep.binarize(volume, prepare.selecting, crop=prepare.crop, voxel=prepare.voxel,
                                     resample=prepare.resample, progress=progress)
         labels[~mask] = 0
         meta["threshold"] = found["threshold"]

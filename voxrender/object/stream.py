@@ -196,7 +196,7 @@ def _plan(stack, source, read, prepare, slab_voxels, token, spool=None):
         windows = tuple(window for _, window, _ in prepare.tissues)
         threshold = ", ".join(str(w) for w in windows)
     else:
-        found = prepare.threshold
+        found = prepare.selecting
         if found is prep.otsu_threshold:
             found = survey["otsu"]
         elif callable(found):
@@ -244,7 +244,7 @@ def _survey(stack, region, bin, prepare, slab_voxels=SLAB_VOXELS):
     value, which is all it needs), and float values a second one for its histogram.
     """
     binned_slices = (region[0].stop - region[0].start) // bin
-    otsu = prepare.threshold is prep.otsu_threshold and not prepare.tissues
+    otsu = prepare.selecting is prep.otsu_threshold and not prepare.tissues
     # the padding of the volume binarize sees: the whole one, or the cropped one binned
     whole = (slice(0, stack.shape[0]), slice(None), slice(None))
     padding = prep.padding_value(_Sampled(stack, *((region, bin) if bin > 1 else (whole, 1)))) if otsu else None
