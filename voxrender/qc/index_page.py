@@ -148,9 +148,8 @@ def missing_labels(studies):
         for key, name in names.items():
             seen.setdefault(key, name)
     missing = {}
-    for study in studies:
-        others = {key for other, names in present.items() if other != study.name for key in names}
-        lacking = [name for key, name in seen.items() if key in others and key not in present[study.name]]
+    for study in studies:               # a key the batch has seen is another study's when this one lacks it
+        lacking = [name for key, name in seen.items() if key not in present[study.name]]
         if lacking:
             missing[study.name] = lacking
     return missing
