@@ -349,3 +349,39 @@ def test_search_and_filters_show_what_they_say_and_the_keys_follow(tmp_path, bro
     page.keyboard.press("k")
     assert page.locator("tr.selected").get_attribute("data-study") == shown()[-2]
     assert errors == []
+
+
+def test_a_cohort_is_shown_a_page_at_a_time_and_the_keys_cross_the_pages(tmp_path, browser):
+    """250 studies: a page of 100 is laid out (the others hidden, their thumbnails not fetched), j past its last
+    study turns the page, the counts and the search take the whole cohort."""
+    from voxrender.qc.index_page import PAGE
+
+    studies = [StudyRow(f"s{n:03d}", f"/data/s{n:03d}", labels=[BRAIN] if n % 2 else [BRAIN, SKULL])
+               for n in range(250)]
+    write_index(tmp_path / "index.html", studies)
+    errors = []
+    page = _open(browser.new_context(), tmp_path / "index.html", errors)
+
+    def shown():
+        return page.evaluate("() => [...document.querySelectorAll('tr[data-study]')].filter(r => !r.hidden)"
+                             ".map(r => r.dataset.study)")
+
+    assert PAGE == 100 and shown() == [f"s{n:03d}" for n in range(100)]
+    assert page.locator("#page").inner_text() == "page 1 of 3"
+    for _ in range(99):
+        page.keyboard.press("j")
+    assert page.locator("tr.selected").get_attribute("data-study") == "s099"
+    page.keyboard.press("j")                                            # past the page's last: the next page
+    assert page.locator("tr.selected").get_attribute("data-study") == "s100"
+    assert shown()[0] == "s100" and page.locator("#page").inner_text() == "page 2 of 3"
+    page.keyboard.press("k")
+    assert page.locator("tr.selected").get_attribute("data-study") == "s099" and shown()[-1] == "s099"
+    assert page.locator('#show option[value="all"]').inner_text().endswith("(250)")
+    page.locator("#search").fill("s242")
+    assert shown() == ["s242"]
+    page.locator("#search").fill("")                                    # all again, the found study kept in view
+    assert page.locator("tr.selected").get_attribute("data-study") == "s242"
+    assert page.locator("#page").inner_text() == "page 3 of 3"
+    page.locator('[data-action="previous-page"]').click()
+    assert page.locator("#page").inner_text() == "page 2 of 3" and shown()[0] == "s100"
+    assert errors == []

@@ -71,6 +71,9 @@ class StudyRow:
 
 
 VERDICTS = ("pass", "fail", "unsure")
+# Studies shown at a time: the others stay in the page, hidden, so that the browser lays out and draws a page of
+# them (and fetches its thumbnails only), not the whole cohort; the keys move across pages.
+PAGE = 100
 VERDICT_COLUMNS = ("study", "input", "labels", "verdict", "note", "reviewer", "time")
 
 
@@ -186,7 +189,8 @@ def write_index(path, studies, title="voxrender batch"):
     # the flagged studies first, the worst first (the lowest Dice, else the most flags and the largest |z|); the
     # others in the batch's order
     order = sorted(range(len(studies)), key=lambda k: (not studies[k].flags, tuple(studies[k].severity), k))
-    rows = [_row(number, studies[k], missing.get(studies[k].name, [])) for number, k in enumerate(order, 1)]
+    rows = [_row(number, studies[k], missing.get(studies[k].name, []), hidden=number > PAGE)
+            for number, k in enumerate(order, 1)]
     counts = [(len(studies), "studies", ""),
               (sum(bool(study.flags) for study in studies), "flagged", "warn"),
               (sum(bool(study.error) for study in studies), "failed", "bad"),
@@ -195,7 +199,8 @@ def write_index(path, studies, title="voxrender batch"):
     summary = " ".join(f'<span class="count {kind if number else ""}"><b>{number}</b> {what}</span>'
                        for number, what, kind in counts)
     summary += f' <span class="count" id="reviewed"><b>0</b> of {len(studies)} reviewed</span>'
-    page = _PAGE.format(title=_text(title), summary=summary, rows="\n".join(rows), style=_STYLE, script=_SCRIPT)
+    page = _PAGE.format(title=_text(title), summary=summary, rows="\n".join(rows), style=_STYLE,
+                        script=_SCRIPT.replace("%PAGE%", str(PAGE)))
     with atomic_output(path) as tmp:
         tmp.write_text(page, encoding="utf-8")
 
@@ -219,7 +224,7 @@ def _thumbnail(path, caption, size):
             f'alt="{_text(caption)}"></a><figcaption>{_text(caption)}</figcaption></figure>')
 
 
-def _row(number, study, missing):
+def _row(number, study, missing, hidden=False):
     """One study's table row."""
     flags = []
     if study.error:
@@ -275,7 +280,8 @@ def _row(number, study, missing):
     cells = [f'<td class="n">{number}</td>', f'<td>{"".join(about)}{verdict}</td>', f'<td>{"".join(flags)}</td>',
              f"<td>{sheet}</td>", f'<td class="views">{views}</td>', f"<td>{turntable}</td>", f"<td>{label_table}</td>"]
     return (f'<tr class="{kind}" data-study="{_text(study.name)}" data-input="{_text(study.input)}" '
-            f'data-labels="{_text(names)}" data-verdict="{_text(study.verdict)}">{"".join(cells)}</tr>')
+            f'data-labels="{_text(names)}" data-verdict="{_text(study.verdict)}"{" hidden" if hidden else ""}>'
+            f'{"".join(cells)}</tr>')
 
 
 _STYLE = """
@@ -379,11 +385,26 @@ document.getElementById("only-flagged").addEventListener("change", function (eve
     rows[k].classList.add("selected");
     rows[k].scrollIntoView({block: "nearest"});
   }
-  function step(by) {            // the next shown row that way, the selection staying when there is none
-    for (var k = selected + by; k >= 0 && k < rows.length; k += by) {
-      if (!rows[k].hidden) { select(k); return; }
-    }
+  var PAGE = %PAGE%, page = 0, matched = rows.slice();
+  function step(by) {            // the next shown study that way, on the next page when it is there
+    var at = matched.indexOf(rows[selected]) + by;
+    if (at < 0 || at >= matched.length) { return; }
+    if (Math.floor(at / PAGE) !== page) { page = Math.floor(at / PAGE); paginate(); }
+    select(rows.indexOf(matched[at]));
   }
+  function paginate() {          // the page of the matching studies shown; the rest hidden
+    var pages = Math.max(1, Math.ceil(matched.length / PAGE));
+    page = Math.min(page, pages - 1);
+    var on = new Set(matched.slice(page * PAGE, (page + 1) * PAGE));
+    rows.forEach(function (row) { row.hidden = !on.has(row); });
+    document.getElementById("page").textContent = "page " + (page + 1) + " of " + pages;
+  }
+  document.querySelector('[data-action="previous-page"]').addEventListener("click", function () {
+    if (page > 0) { page--; paginate(); select(rows.indexOf(matched[page * PAGE])); }
+  });
+  document.querySelector('[data-action="next-page"]').addEventListener("click", function () {
+    if ((page + 1) * PAGE < matched.length) { page++; paginate(); select(rows.indexOf(matched[page * PAGE])); }
+  });
   // What is shown: the rows that pass the filter and hold the search's words in their name, input or labels.
   var filters = {
     all: function () { return true; },
@@ -395,10 +416,14 @@ document.getElementById("only-flagged").addEventListener("change", function (eve
   var show = document.getElementById("show"), search = document.getElementById("search");
   function filter() {
     var words = search.value.toLowerCase().split(/\s+/).filter(Boolean);
-    rows.forEach(function (row) {
+    var current = rows[selected];
+    matched = rows.filter(function (row) {
       var text = (row.dataset.study + " " + row.dataset.input + " " + row.dataset.labels).toLowerCase();
-      row.hidden = !(filters[show.value](row) && words.every(function (w) { return text.indexOf(w) >= 0; }));
+      return filters[show.value](row) && words.every(function (w) { return text.indexOf(w) >= 0; });
     });
+    var at = matched.indexOf(current);
+    if (at >= 0) { page = Math.floor(at / PAGE); }
+    paginate();
     [].forEach.call(show.options, function (option) {
       var n = rows.filter(filters[option.value]).length;
       option.textContent = option.textContent.replace(/ \(\d+\)$/, "") + " (" + n + ")";
@@ -516,6 +541,7 @@ document.getElementById("only-flagged").addEventListener("change", function (eve
     }
     rows.forEach(function (row) { body.appendChild(row); });
     selected = rows.indexOf(current);
+    filter();
   });
   count();
   select(0);
@@ -534,6 +560,9 @@ _PAGE = """<!doctype html>
 <option value="unreviewed">no verdict yet</option><option value="failed">failed</option>
 <option value="fail">verdict fail</option></select></label>
 <input type="search" id="search" placeholder="study or label" size="14">
+<span><button type="button" data-action="previous-page" title="the page before">&lsaquo;</button>
+<span id="page">page 1</span>
+<button type="button" data-action="next-page" title="the page after">&rsaquo;</button></span>
 <label>reviewer <input type="text" id="reviewer" size="8"></label>
 <button type="button" data-action="export">export verdicts.csv</button>
 <button type="button" data-action="import">import</button><input type="file" id="import-file" accept=".csv" hidden>
