@@ -229,14 +229,13 @@ def overlap_report(codes, sets, names, counts=None):
     return report
 
 
-def shapes(codes, sets, labels=None):
-    """``{label: (pieces, border)}`` of each structure (of ``labels``, all when ``None``) of a label map of codes:
-    its pieces, voxels joined by a face, an edge or a corner, and whether it touches the map's edge (the field of
-    view, where it may be cut off).  Each is measured in its own bounding box, the boxes found in one pass.
+def structure_boxes(codes, sets):
+    """``{label: box}``: each structure's bounding box (a tuple of slices) in a label map of codes, the union of the
+    boxes of the codes it is in, found in one pass over the map.
 
-    >>> codes = np.zeros((4, 6, 6), np.uint8); codes[1:3, 1:3, 1:3] = 1; codes[1:3, 4:6, 4:6] = 1; codes[0, 0, 0] = 2
-    >>> shapes(codes, {})
-    {1: (2, True), 2: (1, True)}
+    >>> codes = np.zeros((1, 4, 4), np.uint8); codes[0, 0, 0] = 1; codes[0, 2:4, 2:4] = 3
+    >>> structure_boxes(codes, {"3": [2, 1]})[1]
+    (slice(0, 1, None), slice(0, 4, None), slice(0, 4, None))
     """
     from scipy import ndimage
 
@@ -246,9 +245,29 @@ def shapes(codes, sets, labels=None):
                                start=1):
         if box is not None:
             for label in sets.get(str(code), (code,)):
-                held = boxes.get(label)
-                boxes[label] = box if held is None else tuple(slice(min(a.start, b.start), max(a.stop, b.stop))
-                                                              for a, b in zip(held, box, strict=True))
+                boxes[label] = union_box([boxes.get(label), box])
+    return boxes
+
+
+def union_box(boxes):
+    """The smallest box holding ``boxes`` (``None`` among them is none)."""
+    boxes = [b for b in boxes if b is not None]
+    return tuple(slice(min(b[k].start for b in boxes), max(b[k].stop for b in boxes)) for k in range(len(boxes[0])))
+
+
+def shapes(codes, sets, labels=None):
+    """``{label: (pieces, border)}`` of each structure (of ``labels``, all when ``None``) of a label map of codes:
+    its pieces, voxels joined by a face, an edge or a corner, and whether it touches the map's edge (the field of
+    view, where it may be cut off).  Each is measured in its own bounding box (:func:`structure_boxes`).
+
+    >>> codes = np.zeros((4, 6, 6), np.uint8); codes[1:3, 1:3, 1:3] = 1; codes[1:3, 4:6, 4:6] = 1; codes[0, 0, 0] = 2
+    >>> shapes(codes, {})
+    {1: (2, True), 2: (1, True)}
+    """
+    from scipy import ndimage
+
+    codes = np.asarray(codes)
+    boxes = structure_boxes(codes, sets)
     found = {}
     for label in sorted(boxes if labels is None else set(labels) & set(boxes)):
         box = boxes[label]
@@ -256,4 +275,3 @@ def shapes(codes, sets, labels=None):
         border = any(b.start == 0 or b.stop == n for b, n in zip(box, codes.shape, strict=True))
         found[int(label)] = (int(pieces), bool(border))
     return found
-

@@ -73,14 +73,15 @@ class Comparison:
         self.volume = image if isinstance(image, io.Volume) else (read or ReadOptions()).read(image)
         self.sides = [_on_grid(source, self.volume, read, parameter)
                       for source, parameter in ((test, "labels_from"), (reference, "reference"))]
-        self.boxes = [_boxes(values, meta) for values, meta in self.sides]
+        self.boxes = [label_sets.structure_boxes(values, meta.get("label_sets") or {})
+                      for values, meta in self.sides]
         self.structures = [_structures(boxes, meta) for boxes, (_, meta) in zip(self.boxes, self.sides, strict=True)]
         self.keys = list(dict.fromkeys([*self.structures[1], *self.structures[0]]))   # the reference's order first
 
     def masks(self, key):
         """The structure ``key``'s box (slices of the image's grid) and its test and reference masks in it."""
         found = [s.get(key) for s in self.structures]
-        box = _union([self.boxes[k].get(found[k][0]) if found[k] else None for k in range(2)])
+        box = label_sets.union_box([self.boxes[k].get(found[k][0]) if found[k] else None for k in range(2)])
         masks = [label_sets.member_mask(values[box], meta.get("label_sets") or {}, found[k][0]) if found[k]
                  else np.zeros(tuple(b.stop - b.start for b in box), bool)
                  for k, (values, meta) in enumerate(self.sides)]
@@ -97,19 +98,15 @@ class Comparison:
             rows.append({**_row(found, masks, self.volume.spacing, voxel_ml, tolerance_mm), "key": key})
         return sorted(rows, key=lambda r: (r["dice"], r["name"]))
 
-    def classes(self, keys=None):
-        """The image's grid with :data:`CLASSES` of the structures ``keys`` (all when ``None``): where they agree,
-        and where one side alone holds one (a disagreement shows over an agreement of another structure).
+    def classes(self):
+        """The image's grid with :data:`CLASSES` of every structure: where they agree, and where one side alone
+        holds one (a disagreement shows over an agreement of another structure).
         """
         classes = np.zeros(self.volume.shape, np.uint8)
-        for key in self.keys if keys is None else keys:
-            _, box, (test, reference) = self.masks(key)
-            here = np.select([test & reference, test, reference], [1, 2, 3], 0).astype(np.uint8)
-            classes[box] = np.maximum(classes[box], here)
+        for key in self.keys:
+            _, box, masks = self.masks(key)
+            classes[box] = np.maximum(classes[box], _classes(*masks))
         return classes
-
-    def _surface(self, classes, box, size):
-        return _surface_of(self.volume, classes, box, size)
 
     def picture(self, rows, size=(256, 256), worst=4):
         """A sheet: for each of the ``worst`` structures of ``rows`` (:meth:`metrics`), its axial, coronal and
@@ -123,8 +120,9 @@ class Comparison:
         window = default_window(self.volume)
         pictures, captions = [], []
         for row in rows[:worst]:
-            _, box, _ = self.masks(row["key"])
-            classes = self.classes([row["key"]])                  # this structure alone
+            _, box, masks = self.masks(row["key"])
+            classes = np.zeros(self.volume.shape, np.uint8)      # this structure alone
+            classes[box] = _classes(*masks)
             middle = [(b.start + b.stop - 1) // 2 for b in box][::-1]               # x, y, z
             line, words = [], []
             for plane in PLANES:
@@ -134,7 +132,7 @@ class Comparison:
                 line.append(slice_picture(grey, pixel_mm, window, labels, CLASSES, "both", 0.45, size,
                                           legend=True))
                 words.append(f"{row['name'][:24]}, {plane}")
-            line.append(self._surface(classes, box, size))
+            line.append(_surface_of(self.volume, classes, box, size))
             words.append(f"{row['name'][:24]}, surface")
             pictures.append(line)
             captions.append(words)
@@ -142,6 +140,11 @@ class Comparison:
         parts.append(metrics_picture(rows, parts[0].shape[1]))
         width = max(part.shape[1] for part in parts)
         return np.concatenate([np.pad(part, ((0, 0), (0, width - part.shape[1]), (0, 0))) for part in parts])
+
+
+def _classes(test, reference):
+    """:data:`CLASSES` of two masks of one box: 1 both, 2 the test alone, 3 the reference alone, 0 neither."""
+    return np.select([test & reference, test, reference], [1, 2, 3], 0).astype(np.uint8)
 
 
 def _surface_of(volume, classes, box, size):
@@ -200,8 +203,7 @@ def _on_grid(source, volume, read, parameter):
             found, name = source, source.meta.get("source", "the label array")
         else:
             found, name = read_labels(source, volume, read), str(source)
-        values = on_image_grid(found, volume, name)[0] if found.shape != volume.shape or "origin" in found.meta \
-            else found.values
+        values = on_image_grid(found, volume, name)[0]
     except InputError as exc:
         if parameter == "labels_from":
             raise
@@ -210,33 +212,13 @@ def _on_grid(source, volume, read, parameter):
 
 
 def _structures(boxes, meta):
-    """``{key: (label, name)}`` of the structures a label map holds: those with a box (:func:`_boxes`), in order."""
+    """``{key: (label, name)}`` of the structures a label map holds: those with a box, in order."""
     table = meta.get("label_table") or {}
     found = {}
     for label in sorted(boxes):
         name = (table.get(str(label)) or {}).get("name") or f"label {label}"
         found.setdefault(label_sets.label_key(name, label), (label, name))
     return found
-
-
-def _boxes(values, meta):
-    """``{label: box}``: each structure's bounding box (a tuple of slices), from those of its codes."""
-    from scipy import ndimage
-
-    codes = ndimage.find_objects(np.asarray(values, np.int64) if values.dtype.kind == "i" else values)
-    sets = meta.get("label_sets") or {}
-    boxes = {}
-    for code, box in enumerate(codes, start=1):
-        if box is not None:
-            for label in sets.get(str(code), (code,)):
-                boxes[label] = _union([boxes.get(label), box])
-    return boxes
-
-
-def _union(boxes):
-    """The smallest box holding ``boxes`` (``None`` among them is none)."""
-    boxes = [b for b in boxes if b is not None]
-    return tuple(slice(min(b[k].start for b in boxes), max(b[k].stop for b in boxes)) for k in range(3))
 
 
 def _row(found, masks, spacing, voxel_ml, tolerance_mm):
