@@ -977,9 +977,13 @@ def _study_rows(items, rows, study_errors, out_dir, flags=()):
         path = Path(path)
         return str(path.relative_to(out_dir)) if path.is_relative_to(out_dir) else str(path)
 
-    by_name = {}
+    from ..review.flags import in_words, severity
+
+    by_name, flagged = {}, {}
     for row in rows:
         by_name.setdefault(row["name"], []).append(row)
+    for flag in flags:                                   # grouped once: a cohort has many studies and flags
+        flagged.setdefault(flag["study"], []).append(flag)
     studies = []
     for item in items:
         own = by_name.get(item.name, [])
@@ -993,16 +997,10 @@ def _study_rows(items, rows, study_errors, out_dir, flags=()):
         studies.append(StudyRow(item.name, item.input, error, relative(sheet) if sheet and sheet.is_file() else None,
                                 [] if turning else pictures, [path for _, path in pictures] if turning else [],
                                 labels, next((json.loads(row["overlaps"]) for row in own if row.get("overlaps")), []),
-                                sum(seconds) if seconds else None, *_flags_of(item.name, flags)))
+                                sum(seconds) if seconds else None,
+                                [in_words(f) for f in flagged.get(item.name, [])],
+                                severity(flagged[item.name]) if item.name in flagged else ()))
     return studies
-
-
-def _flags_of(name, flags):
-    """A study's flags in words and their severity, as the index page takes them."""
-    from ..review.flags import in_words, severity
-
-    own = [f for f in flags if f["study"] == name]
-    return [in_words(f) for f in own], severity(own) if own else ()
 
 
 def _write_sheet(path, items, rows):
