@@ -1,6 +1,8 @@
 """voxrender's benchmarks: ``make benchmark`` (:mod:`benchmarks.bench`) and ``make bench-compare``."""
 
 import compileall
+import statistics
+import time
 from pathlib import Path
 
 
@@ -13,3 +15,13 @@ def compile_bytecode(tree):
     """
     if not compileall.compile_dir(str(Path(tree) / "voxrender"), quiet=1):
         raise SystemExit(f"error: cannot compile {Path(tree) / 'voxrender'} to bytecode")
+
+
+def median_seconds(work, repeat):
+    """Median wall time of ``repeat`` calls of ``work()``, and the last result."""
+    times, result = [], None
+    for _ in range(repeat):
+        started = time.perf_counter()
+        result = work()
+        times.append(time.perf_counter() - started)
+    return statistics.median(times), result

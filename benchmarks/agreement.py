@@ -13,12 +13,12 @@ the whole grid, as its users call it; voxrender takes the label maps.
 
 from __future__ import annotations
 
-import statistics
-import time
 import warnings
 from pathlib import Path
 
 import numpy as np
+
+from benchmarks import median_seconds
 
 
 def damaged_labels(reference):
@@ -69,15 +69,6 @@ def damaged_organs(reference):
     return test
 
 
-def _median(work, repeat):
-    times, result = [], None
-    for _ in range(repeat):
-        started = time.perf_counter()
-        result = work()
-        times.append(time.perf_counter() - started)
-    return statistics.median(times), result
-
-
 def bench_agreement(path, repeat):
     """Median seconds of voxrender's agreement and of ``surface-distance`` on the same structures, and their ratio,
     of each case.
@@ -113,7 +104,7 @@ def _case(volume, test, reference, table, repeat):
     from voxrender.review.agreement import Comparison
 
     sides = [io.Volume(values, volume.spacing, {"label_table": table}) for values in (test, reference)]
-    ours_s, rows = _median(lambda: Comparison(volume, *sides).metrics(2.0), repeat)
+    ours_s, rows = median_seconds(lambda: Comparison(volume, *sides).metrics(2.0), repeat)
     spacing = tuple(volume.spacing)[::-1]
     labels = [int(k) for k in np.unique(reference) if k]
 
@@ -129,7 +120,7 @@ def _case(volume, test, reference, table, repeat):
                                 surface_distance.compute_surface_dice_at_tolerance(distances, 2.0))
         return found
 
-    theirs_s, found = _median(theirs, repeat)
+    theirs_s, found = median_seconds(theirs, repeat)
     largest = max(abs(a - b) for row in rows for a, b in zip((row["dice"], row["hd95_mm"], row["nsd"]),
                                                              found[row["reference_label"]], strict=True))
     return {"structures": len(rows), "voxrender_s": ours_s, "surface_distance_s": theirs_s,

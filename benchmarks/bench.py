@@ -46,7 +46,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from benchmarks import big_stack, compile_bytecode, studies
+from benchmarks import big_stack, compile_bytecode, median_seconds, studies
 from benchmarks.agreement import bench_agreement
 from benchmarks.index_page import bench_index_page
 from benchmarks.masks import bench_mask_folder
@@ -76,16 +76,6 @@ def rendered(obj, view, method, **options):
     """``render`` of an :class:`Encoded` object; octree methods get the octree kept with it (built once, as
     the papers start from the octree).  A view without a scale fits the whole volume (as the papers' tables do)."""
     return render(obj.segments, view, method, fit="volume", tree=obj.tree_for(method), **options)
-
-
-def median_seconds(work, repeat):
-    """Median wall time of ``repeat`` calls of ``work()``, and the last result."""
-    times, result = [], None
-    for _ in range(repeat):
-        started = time.perf_counter()
-        result = work()
-        times.append(time.perf_counter() - started)
-    return statistics.median(times), result
 
 
 def bench_read(path, volume, repeat):

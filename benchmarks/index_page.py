@@ -7,10 +7,10 @@ three labels and a flag), from their rows alone, no rendering; :func:`bench_inde
 
 from __future__ import annotations
 
-import statistics
 import tempfile
-import time
 from pathlib import Path
+
+from benchmarks import median_seconds
 
 
 def cohort(count):
@@ -39,13 +39,9 @@ def bench_index_page(studies=10_000, repeat=3):
     rows = cohort(studies)
     with tempfile.TemporaryDirectory() as folder:
         page = Path(folder) / "index.html"
-        times = []
-        for _ in range(repeat):
-            started = time.perf_counter()
-            write_index(page, rows)
-            times.append(time.perf_counter() - started)
+        seconds = median_seconds(lambda: write_index(page, rows), repeat)[0]
         size = page.stat().st_size
-    return {"studies": studies, "seconds": statistics.median(times), "megabytes": size / 1e6,
+    return {"studies": studies, "seconds": seconds, "megabytes": size / 1e6,
             "bytes_per_study": size / studies}
 
 

@@ -6,12 +6,12 @@ same labels as one NIfTI file; :func:`bench_mask_folder` is called by ``benchmar
 
 from __future__ import annotations
 
-import statistics
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
+
+from benchmarks import median_seconds
 
 WHOLE_BODY = (600, 512, 512)          # [z, y, x]: a whole-body CT at about 0.8 x 0.8 x 1.5 mm
 TOTALSEGMENTATOR_MASKS = 117          # the structures of TotalSegmentator's "total" task
@@ -34,8 +34,8 @@ def bench_mask_folder(repeat, shape=WHOLE_BODY, count=TOTALSEGMENTATOR_MASKS, se
 
     with tempfile.TemporaryDirectory() as scratch:
         folder, one_file = write_mask_folder(Path(scratch), shape, count, seed)
-        folder_s = _median(lambda: io.read_volume(folder), repeat)
-        one_file_s = _median(lambda: io.read_volume(one_file), repeat)
+        folder_s = median_seconds(lambda: io.read_volume(folder), repeat)[0]
+        one_file_s = median_seconds(lambda: io.read_volume(one_file), repeat)[0]
         folder_mb = sum(f.stat().st_size for f in folder.iterdir()) / 1e6
         one_file_mb = one_file.stat().st_size / 1e6
     return {"masks": count, "grid_xyz": list(shape[::-1]), "mask_folder_s": folder_s, "one_file_s": one_file_s,
@@ -76,15 +76,6 @@ def _blob(rng, shape):
     grid = np.ogrid[tuple(slice(0, s) for s in sizes)]
     inside = sum(((g - (s - 1) / 2) / (s / 2)) ** 2 for g, s in zip(grid, sizes, strict=True)) <= 1
     return box, inside
-
-
-def _median(work, repeat):
-    times = []
-    for _ in range(repeat):
-        started = time.perf_counter()
-        work()
-        times.append(time.perf_counter() - started)
-    return statistics.median(times)
 
 
 if __name__ == "__main__":
