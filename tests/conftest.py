@@ -10,15 +10,19 @@ DATA = ROOT.parent / "shared" / "data"
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
+def absent(message):
+    """Skip the test, saying what is absent; fail it in CI (CI=true), which provides everything the tests need, so
+    that the suite cannot pass there without them."""
+    if os.environ.get("CI") == "true":
+        pytest.fail(f"{message}; CI=true needs it")
+    pytest.skip(message)
+
+
 def data_path(name):
-    """A real stack from ../shared/data, or skip the test with the reason (fail it in CI, where CI=true:
-    there the real data must be beside the clone, or the suite would pass without its real-data tests)."""
+    """A real stack from ../shared/data, or :func:`absent`."""
     path = DATA / name
     if not path.exists():
-        message = f"real data {path} is absent (it lives in ../shared/data beside the checkout)"
-        if os.environ.get("CI") == "true":
-            pytest.fail(f"{message}; CI=true needs it")
-        pytest.skip(message)
+        absent(f"real data {path} is absent (it lives in ../shared/data beside the checkout)")
     return path
 
 

@@ -1,6 +1,5 @@
 import csv
 import json
-import re
 import shutil
 from pathlib import Path
 
@@ -15,6 +14,7 @@ from voxrender.errors import InputError
 from voxrender.object import vxs
 from voxrender.object.pipeline import PrepOptions, ReadOptions
 from voxrender.pictures._picture import RenderOptions
+from voxrender.qc.index_page import missing_labels, read_index
 from voxrender.space.view import PRESETS, rotation_matrix
 
 
@@ -220,10 +220,9 @@ def test_a_turntable_keeps_one_scale_and_centres_every_frame(tmp_path, stacks):
 def test_index_page_and_sheet(tmp_path, stacks):
     work = items([stacks / "ball.npy", stacks / "broken.npy"], batch.parse_views(["anterior", "left"]), size=(24, 24))
     batch.run_batch(work, tmp_path, jobs=1, make_sheet=True)
-    page = (tmp_path / "index.html").read_text()
-    rows = sum(page.count(f'<tr class="{kind}" data-study=') for kind in ("failed", "flagged", "clean"))
-    assert rows == 2 and page.count('<img src="ball/') == 2                # a row per study, each view linked
-    assert "broken.npy" in page and '<div class="error">' in page         # the failed study keeps its error
+    ball, broken = sorted(read_index(tmp_path / "index.html"), key=lambda study: study.name)
+    assert [path for _, path in ball.pictures] == ["ball/anterior.png", "ball/left.png"]  # a row per study, its views
+    assert broken.input.endswith("broken.npy") and broken.error                          # the failure keeps its error
     sheet = iio.imread(tmp_path / "sheet.png")
     assert sheet.shape[:2] == (2 * (24 + 16 + 4) + 4, 2 * (24 + 4) + 4)   # a row per input, a column per view
 
@@ -311,7 +310,8 @@ def test_qc_sheets_are_made_of_slice_stacks_and_an_encoded_object_still_renders(
     rows = batch.run_batch(work, tmp_path / "out", jobs=1, make_sheet=True)
     assert [row["status"] for row in rows] == ["ok", "ok"]
     assert sorted(p.name for p in (tmp_path / "out" / "sheets").iterdir()) == ["box.png"]   # no grey values, no sheet
-    assert 'href="sheets/box.png"' in (tmp_path / "out" / "index.html").read_text()
+    sheets = {study.name: study.sheet for study in read_index(tmp_path / "out" / "index.html")}
+    assert sheets == {"box": "sheets/box.png", "ball": None}
 
 
 def test_a_rerun_keeps_each_pictures_labels_in_the_summary_and_the_page(tmp_path, stacks):
@@ -327,13 +327,13 @@ def test_a_rerun_keeps_each_pictures_labels_in_the_summary_and_the_page(tmp_path
     pages = []
     for _ in range(2):
         rows = batch.run_batch(work, tmp_path / "out", jobs=1)
-        pages.append((tmp_path / "out" / "index.html").read_text())
+        pages.append(read_index(tmp_path / "out" / "index.html"))
         summary = read_summary(tmp_path / "out" / "summary.csv")
         assert json.loads(summary[0]["label_volumes"])[1]["voxels"] == 27
     assert [row["status"] for row in rows] == ["done earlier", "done earlier"]
-    tables = [re.findall(r'<table class="labels">.*?</table>', page) for page in pages]
-    assert tables[0] == tables[1] and len(tables[1]) == 1 and ">27<" in tables[1][0]      # the map's, kept
-    assert '<span class="flag' not in pages[1]              # the CT alone lacks no label: it has none to compare
+    tables = [[study.labels for study in page] for page in pages]
+    assert tables[0] == tables[1] and [label["voxels"] for label in tables[1][0]] == [64, 27]   # the map's, kept
+    assert tables[1][1] == [] and missing_labels(pages[1]) == {}    # the CT alone lacks no label: it has none
 
 
 def test_summary_cells_that_begin_like_a_formula_are_quoted_and_a_rerun_reads_them_back(tmp_path, stacks):

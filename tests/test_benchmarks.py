@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from conftest import absent
 
 from benchmarks import bench
 from voxrender.object import segments, vxs
@@ -206,3 +207,14 @@ def test_index_page_section_runs_small():
 
     result = bench_index_page(studies=60, repeat=1)
     assert result["studies"] == 60 and result["seconds"] > 0 and result["bytes_per_study"] > 100
+
+
+def test_index_browser_section_runs_small():
+    from benchmarks.bench import _index_browser_lines
+    from benchmarks.index_page import bench_index_browser, chromium_absent
+
+    if chromium_absent():
+        absent(f"browser benchmark: {chromium_absent()}")
+    result = bench_index_browser(studies=150, batch=3, repeat=1)
+    assert result["studies"] == 150 and result["rows_s"] > 0 and result["batch"]["turns"] == 6
+    assert "| j pressed 200 times through Playwright |" in "\n".join(_index_browser_lines(result))

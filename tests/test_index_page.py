@@ -4,20 +4,18 @@ Without the playwright package or /usr/bin/chromium the browser tests skip, sayi
 they fail instead (CI installs both, and must run them).
 """
 
-import os
 from pathlib import Path
 from urllib.parse import unquote, urlparse
 
 import numpy as np
 import pytest
+from conftest import absent
 
+from benchmarks.index_page import chromium, chromium_absent
 from voxrender.errors import InputError
 from voxrender.outputs.output import write_png
 from voxrender.qc.index_page import StudyRow, missing_labels, write_index
 
-CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 SCREENSHOT = Path("/tmp/index/screenshot.png")
 FRAMES = 12
 ERROR = 'cannot read <b>&"x.dcm": not a DICOM file'
@@ -80,12 +78,34 @@ def test_page_escapes_text_and_quotes_paths(tmp_path):
     studies = make_batch(tmp_path)
     write_index(tmp_path / "index.html", studies, title="QC <batch> & co")
     page = (tmp_path / "index.html").read_text()
-    assert ERROR not in page and '<b>&"' not in page
-    assert "cannot read &lt;b&gt;&amp;&quot;x.dcm&quot;" in page
+    assert ERROR not in page and '<b>&"' not in page               # the studies are JSON with no "<", ">" or "&"
+    assert r'cannot read \u003cb\u003e\u0026\"x.dcm\"' in page
     assert "<title>QC &lt;batch&gt; &amp; co</title>" in page
-    assert 'href="chest%20%232%20100%25/front%20view.png"' in page
+    assert '"chest%20%232%20100%25/front%20view.png"' in page
     assert "http" not in page.replace('name="viewport"', "")   # nothing asked of the network
     assert not list(tmp_path.glob(".index.html*"))              # written atomically: no temporary left
+
+
+def test_the_page_reads_back_as_written(tmp_path):
+    """read_index gives the rows written, the flagged first, each as it was but for its severity."""
+    import json
+    from dataclasses import asdict, replace
+
+    from voxrender.qc.index_page import read_index
+
+    studies = make_batch(tmp_path)
+    studies[2] = replace(studies[2], flags=["brain: volume 1200 mL, the cohort 900 (z 4.1)"], severity=(1.0, -1, 4.1),
+                         verdict="fail", note="see the sheet")
+    write_index(tmp_path / "index.html", studies)
+
+    def plain(rows):                                    # an empty tuple is an empty list, as JSON keeps it
+        return [json.loads(json.dumps(asdict(row))) for row in rows]
+
+    assert plain(read_index(tmp_path / "index.html")) == plain([replace(studies[2], severity=()), *studies[:2],
+                                                               studies[3]])
+    (tmp_path / "other.html").write_text("<html></html>")
+    with pytest.raises(InputError, match="cannot read the index page"):
+        read_index(tmp_path / "other.html")
 
 
 def test_page_in_a_missing_folder_is_refused(tmp_path):
@@ -95,34 +115,14 @@ def test_page_in_a_missing_folder_is_refused(tmp_path):
 
 # -- in the browser ----------------------------------------------------------------------------------------------------
 
-def _need_browser():
-    """Skip (fail under CI=true) unless Playwright and the system's Chromium are both there."""
-    absent = []
-    try:
-        import playwright.sync_api  # noqa: F401
-    except ImportError:
-        absent.append("the playwright package is not installed (pip install playwright)")
-    if not Path(CHROMIUM).exists():
-        absent.append(f"{CHROMIUM} is absent (apt-get install chromium)")
-    if absent:
-        message = "browser test: " + " and ".join(absent)
-        if os.environ.get("CI") == "true":
-            pytest.fail(f"{message}; CI=true needs it")
-        pytest.skip(message)
-
-
 @pytest.fixture(scope="module")
 def browser():
-    """Headless Chromium, one for the module (Playwright's sync API runs one at a time)."""
-    _need_browser()
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as playwright:
-        launched = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        try:
-            yield launched
-        finally:
-            launched.close()
+    """Headless Chromium, one for the module (Playwright's sync API runs one at a time); without it the tests skip,
+    saying why, or fail under CI=true, which installs it."""
+    if chromium_absent():
+        absent(f"browser test: {chromium_absent()}")
+    with chromium() as launched:
+        yield launched
 
 
 @pytest.fixture(scope="module")
@@ -222,10 +222,26 @@ def test_flags_errors_and_counts_are_shown(opened):
     SCREENSHOT.parent.mkdir(parents=True, exist_ok=True)
     page.screenshot(path=SCREENSHOT, full_page=True)
 
-    page.locator("#only-flagged").check()              # the clean study hides; the flagged ones stay
-    assert [rows.nth(k).is_visible() for k in range(4)] == [False, True, True, True]
-    page.locator("#only-flagged").uncheck()
-    assert head.is_visible()
+    page.locator("#show").select_option("flagged")     # the clean study goes; the flagged ones stay
+    assert [rows.nth(k).get_attribute("data-study") for k in range(rows.count())] == [
+        "chest #2 100%", "abdomen", "broken"]
+    page.locator("#show").select_option("all")
+    assert rows.count() == 4
+
+
+def test_text_that_looks_like_markup_stays_text(tmp_path, browser):
+    """A name that would close the data's script element, an error that is an image with a handler: both shown as
+    written, nothing run."""
+    name = "</script><script>window.ran = 1</script><!--"
+    error = '<img src=x onerror="window.ran = 2">'
+    write_index(tmp_path / "index.html", [StudyRow(name, "/data/<x>", error=error, labels=[BRAIN]),
+                                          StudyRow("plain", "/data/plain", labels=[BRAIN])])
+    errors = []
+    page = _open(browser.new_context(), tmp_path / "index.html", errors)
+    assert page.locator("tr.failed .name").inner_text() == name
+    assert page.locator("tr.failed .error").inner_text() == error
+    assert page.evaluate("() => window.ran") is None and page.locator("tbody img").count() == 0
+    assert page.locator("table.studies > tbody > tr").count() == 2 and errors == []
 
 
 def _open(context, path, errors):
@@ -384,4 +400,41 @@ def test_a_cohort_is_shown_a_page_at_a_time_and_the_keys_cross_the_pages(tmp_pat
     assert page.locator("#page").inner_text() == "page 3 of 3"
     page.locator('[data-action="previous-page"]').click()
     assert page.locator("#page").inner_text() == "page 2 of 3" and shown()[0] == "s100"
+    page.locator("#show").select_option("unreviewed")                 # reviewing what is left: a verdict moves on
+    page.keyboard.press("p")
+    assert page.locator("tr.selected").get_attribute("data-study") == "s101" == shown()[0]
+    assert page.locator('#show option[value="unreviewed"]').inner_text().endswith("(249)")
+    assert errors == []
+
+
+def test_a_cohort_of_10000_studies_is_one_page_that_stays_small(tmp_path, browser):
+    """The 10,000 synthetic studies of the benchmark, from their rows alone: a page of them is in the document, fewer
+    than 100 pictures are asked for at load, 200 presses of j cross two pages to the 201st study, and showing the
+    flagged studies shows exactly them, page after page.  (How fast: ``python -m benchmarks.index_page``.)"""
+    from benchmarks.index_page import cohort
+    from voxrender.qc.index_page import PAGE
+
+    studies = cohort(10_000)
+    write_index(tmp_path / "index.html", studies)
+    assert (tmp_path / "index.html").stat().st_size < 300 * len(studies)        # a few hundred bytes a study
+    errors, pictures = [], []
+    context = browser.new_context(viewport={"width": 1280, "height": 800})
+    context.on("request", lambda request: request.url.endswith(".png") and pictures.append(request.url))
+    page = _open(context, tmp_path / "index.html", errors)
+    page.wait_for_timeout(500)                                                 # the lazy thumbnails in view asked for
+    rows = page.locator("table.studies > tbody > tr")
+    assert rows.count() == PAGE and 0 < len(pictures) < 100
+    flagged = [study.name for study in studies if study.flags]                 # shown first
+    for _ in range(200):
+        page.keyboard.press("j")
+    order = flagged + [study.name for study in studies if not study.flags]
+    assert page.locator("tr.selected").get_attribute("data-study") == order[200]
+    assert page.locator("#page").inner_text() == f"page 3 of {len(studies) // PAGE}"
+    page.locator("#show").select_option("flagged")
+    shown = []
+    for _ in range(len(flagged) // PAGE):
+        shown += page.evaluate("() => [...document.querySelectorAll('tr[data-study]')].map(r => r.dataset.study)")
+        page.locator('[data-action="next-page"]').click()
+    assert shown == flagged and page.locator('#show option[value="flagged"]').inner_text() == "flagged (200)"
+    context.close()
     assert errors == []

@@ -15,7 +15,7 @@ from __future__ import annotations
 import html
 import json
 from dataclasses import dataclass
-from pathlib import PurePath
+from pathlib import Path, PurePath
 
 from .._shared.files import atomic_output
 from ..errors import InputError
@@ -141,6 +141,11 @@ def missing_labels(studies):
     ...                 StudyRow("masks", "m/", labels=[{**liver, "name": "hip_right"}])])
     {}
     """
+    return {name: list(lacking.values()) for name, lacking in _lacking(studies).items()}
+
+
+def _lacking(studies):
+    """:func:`missing_labels` by key: ``{study name: {label key: the name it first had in the batch}}``."""
     from .._shared.label_sets import label_key
 
     studies = [study for study in studies if not study.error and study.labels]
@@ -150,47 +155,50 @@ def missing_labels(studies):
     for names in present.values():
         for key, name in names.items():
             seen.setdefault(key, name)
-    missing = {}
+    lacking = {}
     for study in studies:               # a key the batch has seen is another study's when this one lacks it
-        lacking = [name for key, name in seen.items() if key not in present[study.name]]
-        if lacking:
-            missing[study.name] = lacking
-    return missing
+        keys = {key: name for key, name in seen.items() if key not in present[study.name]}
+        if keys:
+            lacking[study.name] = keys
+    return lacking
 
 
 def write_index(path, studies, title="voxrender batch"):
-    """Write the batch's index page to ``path``: one row per study, the counts that need a look at the top.
+    """Write the batch's index page to ``path``: the studies as data, shown a page at a time, the counts that need a
+    look at the top.
 
     Parameters
     ----------
     path : str or Path
         The page (``index.html``); the studies' picture paths are relative to its folder.
     studies : sequence of StudyRow
-        The rows, in the order shown.
+        The rows; the flagged ones are shown first, the worst first, the others in this order.
     title : str
         The page's title and heading.
 
     Notes
     -----
-    Every text from the studies is HTML-escaped and every path URL-quoted, so names, inputs and errors holding
-    ``<``, ``&``, ``"``, ``#`` or ``%`` show as they are.  Thumbnails load lazily, as they scroll into view;
-    a turntable's frames when the pointer first comes to it.  The page is written atomically.
+    The studies are one JSON block in the page (:func:`read_index` reads it back), a few hundred bytes each, and its
+    script builds the rows of the page shown (:data:`PAGE` studies), so a cohort of 10,000 opens in a second: the
+    browser parses, lays out and draws a page of rows, not the cohort, and fetches only their thumbnails, lazily, and
+    a turntable's frames when the pointer first comes to it.  Every text reaches the page as text (the JSON escapes
+    ``<``, ``>`` and ``&``; the script escapes what it writes), every path is URL-quoted, so names, inputs and errors
+    holding ``<``, ``&``, ``"``, ``#`` or ``%`` show as they are.  The page is written atomically.
 
     Examples
     --------
     >>> import pathlib, tempfile
     >>> folder = pathlib.Path(tempfile.mkdtemp())
     >>> write_index(folder / "index.html", [StudyRow("head & neck", "in/head", seconds=2.5)])
-    >>> "head &amp; neck" in (folder / "index.html").read_text()
-    True
+    >>> read_index(folder / "index.html")[0].name
+    'head & neck'
     """
     studies = list(studies)
-    missing = missing_labels(studies)
+    missing = _lacking(studies)
     # the flagged studies first, the worst first (the lowest Dice, else the most flags and the largest |z|); the
     # others in the batch's order
-    order = sorted(range(len(studies)), key=lambda k: (not studies[k].flags, tuple(studies[k].severity), k))
-    rows = [_row(number, studies[k], missing.get(studies[k].name, []), hidden=number > PAGE)
-            for number, k in enumerate(order, 1)]
+    studies = [studies[k] for k in sorted(range(len(studies)),
+                                          key=lambda k: (not studies[k].flags, tuple(studies[k].severity), k))]
     counts = [(len(studies), "studies", ""),
               (sum(bool(study.flags) for study in studies), "flagged", "warn"),
               (sum(bool(study.error) for study in studies), "failed", "bad"),
@@ -199,10 +207,116 @@ def write_index(path, studies, title="voxrender batch"):
     summary = " ".join(f'<span class="count {kind if number else ""}"><b>{number}</b> {what}</span>'
                        for number, what, kind in counts)
     summary += f' <span class="count" id="reviewed"><b>0</b> of {len(studies)} reviewed</span>'
-    page = _PAGE.format(title=_text(title), summary=summary, rows="\n".join(rows), style=_STYLE,
+    data = json.dumps(_records(studies, missing), ensure_ascii=False, separators=(",", ":"))
+    # In a script element only "</script" or "<!--" could end it early: no "<" (nor ">", "&") is left as such.
+    data = data.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
+    page = _PAGE.format(title=_text(title), summary=summary, data=data, style=_STYLE,
                         script=_SCRIPT.replace("%PAGE%", str(PAGE)))
     with atomic_output(path) as tmp:
         tmp.write_text(page, encoding="utf-8")
+
+
+def read_index(path):
+    """The studies of an index page :func:`write_index` wrote, in the order it shows them.
+
+    Parameters
+    ----------
+    path : str or Path
+        The page.
+
+    Returns
+    -------
+    list of StudyRow
+        As they were written, but for their ``severity`` (the order holds it) and their ``ml``, to the microlitre.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> page = pathlib.Path(tempfile.mkdtemp()) / "index.html"
+    >>> liver = {"label": 1, "name": "liver", "colour": [200, 80, 60], "voxels": 900, "ml": 0.9}
+    >>> write_index(page, [StudyRow("a", "a.nrrd", labels=[liver]),
+    ...                    StudyRow("b", "b.nrrd", flags=["liver: 0 mL"], severity=(0.0,))])
+    >>> [(study.name, study.flags, [label["ml"] for label in study.labels]) for study in read_index(page)]
+    [('b', ['liver: 0 mL'], []), ('a', [], [0.9])]
+    """
+    from urllib.parse import unquote
+
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+        data = json.loads(text.split(_DATA_START, 1)[1].split("</script>", 1)[0])
+    except (OSError, UnicodeDecodeError, IndexError, ValueError) as exc:
+        raise InputError(f"cannot read the index page {path}: {exc or 'no studies in it'}; give an index.html "
+                         "that voxrender batch wrote", parameter="path") from None
+    legend = data["legend"]
+    studies = []
+    for record in data["studies"]:
+        labels = []
+        for at, voxels, ml, *shown in record.get("labels", []):
+            name, number, colour, _ = legend[at]
+            labels.append({"label": number, "name": name, "colour": colour, "voxels": voxels, "ml": ml,
+                           **({"shown": shown[0]} if shown else {})})
+        studies.append(StudyRow(
+            record["name"], record["input"], record.get("error", ""),
+            unquote(record["sheet"]) if "sheet" in record else None,
+            [(caption, unquote(url)) for caption, url in record.get("views", [])],
+            [unquote(url) for url in record.get("turntable", [])], labels,
+            [{"names": names, "voxels": voxels} for *names, voxels in record.get("overlaps", [])],
+            record.get("seconds"), record.get("flags", []), (), record.get("verdict", ""), record.get("note", "")))
+    return studies
+
+
+def _records(studies, missing):
+    """The page's data: ``{"legend": [[name, label, colour, key], ...], "studies": [...]}``, each study a dict that
+    holds only what it has (its name and input always; ``error``, ``sheet``, ``views`` as ``[caption, url]``,
+    ``turntable`` as urls, ``labels`` as ``[legend index, voxels, ml]`` and the note of what is ``shown``, ``missing``
+    as legend indices, ``overlaps`` as ``[name, name, voxels]``, ``seconds``, ``flags``, ``verdict``, ``note``).  A
+    label's name, number, colour and key (:func:`voxrender._shared.label_sets.label_key`, which the page matches
+    missing labels by) are said once, in the legend: a cohort's studies share them.
+
+    ``missing`` is :func:`_lacking`'s.
+    """
+    from .._shared.label_sets import label_key
+
+    def entry(label):
+        return label["name"], int(label["label"]), tuple(int(c) for c in label.get("colour") or (128, 128, 128))
+
+    at = {}                                             # a label's entry -> its place in the legend
+    for study in studies:
+        for label in study.labels:
+            at.setdefault(entry(label), len(at))
+    legend = [[name, number, list(colour), label_key(name, number)] for name, number, colour in at]
+    by_key = {}                                         # a missing key is another study's label: in the legend
+    for place, (*_, key) in enumerate(legend):
+        by_key.setdefault(key, place)
+
+    records = []
+    for study in studies:
+        record = {"name": study.name, "input": study.input}
+        if study.error:
+            record["error"] = study.error
+        if study.sheet:
+            record["sheet"] = _url(study.sheet)
+        if study.pictures:
+            record["views"] = [[caption, _url(path)] for caption, path in study.pictures]
+        if study.turntable:
+            record["turntable"] = [_url(frame) for frame in study.turntable]
+        if study.labels:
+            record["labels"] = [[at[entry(label)], int(label["voxels"]), round(float(label["ml"]), 3)]
+                                + ([label["shown"]] if label.get("shown") else []) for label in study.labels]
+        if missing.get(study.name):
+            record["missing"] = [by_key[key] for key in missing[study.name]]
+        if study.overlaps:
+            record["overlaps"] = [[*overlap["names"], int(overlap["voxels"])] for overlap in study.overlaps]
+        if study.seconds is not None:
+            record["seconds"] = round(float(study.seconds), 2)
+        if study.flags:
+            record["flags"] = list(study.flags)
+        if study.verdict:
+            record["verdict"] = study.verdict
+        if study.note:
+            record["note"] = study.note
+        records.append(record)
+    return {"legend": legend, "studies": records}
 
 
 def _text(value):
@@ -214,74 +328,7 @@ def _url(path):
     """A relative path as a link: forward slashes, URL-quoted (a space, ``#`` or ``%`` in a name stays a name)."""
     from urllib.parse import quote
 
-    return _text(quote(PurePath(path).as_posix()))
-
-
-def _thumbnail(path, caption, size):
-    """A lazily loaded thumbnail linked to its picture, with its caption under it."""
-    link = _url(path)
-    return (f'<figure><a href="{link}"><img src="{link}" loading="lazy" decoding="async" class="{size}" '
-            f'alt="{_text(caption)}"></a><figcaption>{_text(caption)}</figcaption></figure>')
-
-
-def _row(number, study, missing, hidden=False):
-    """One study's table row."""
-    flags = []
-    if study.error:
-        flags.append('<span class="flag bad">failed</span>')
-    if missing:
-        flags.append(f'<span class="flag warn" title="{_text(", ".join(missing))}">missing {len(missing)}</span>')
-    if study.overlaps:
-        flags.append(f'<span class="flag warn">overlap {len(study.overlaps)}</span>')
-    if study.flags:
-        reasons = list(study.flags)
-        flags.append(f'<span class="flag warn" title="{_text("; ".join(reasons))}">flags {len(reasons)}</span>')
-        flags += [f'<div class="reason">{_text(reason)}</div>' for reason in reasons[:6]]
-
-    about = [f'<div class="name">{_text(study.name)}</div>', f'<div class="input">{_text(study.input)}</div>']
-    if study.seconds is not None:
-        about.append(f'<div class="input">{study.seconds:.1f} s</div>')
-
-    sheet = _thumbnail(study.sheet, "QC sheet", "sheet") if study.sheet else ""
-    views = "".join(_thumbnail(path, caption, "view") for caption, path in study.pictures)
-    if study.error:
-        views = f'<div class="error">{_text(study.error)}</div>' + views
-
-    turntable = ""
-    if study.turntable:
-        frames = [_url(frame) for frame in study.turntable]
-        # The frames' list as JSON in an attribute: the browser undoes the escaping before the script parses it.
-        turntable = (f'<figure><img class="turntable" src="{frames[0]}" data-frames="{_text(json.dumps(frames))}" '
-                     f'tabindex="0" draggable="false" alt="turntable of {_text(study.name)}">'
-                     f'<figcaption>{len(frames)} frames, move across</figcaption></figure>')
-
-    from .._shared.label_sets import label_key
-
-    labels, lacking = [], {label_key(name) for name in missing}
-    for label in study.labels:
-        red, green, blue = (int(c) for c in label.get("colour") or (128, 128, 128))
-        empty = ' class="missing"' if label_key(label["name"], label["label"]) in lacking else ""
-        within = f' <span class="note">({_text(label["shown"])})</span>' if label.get("shown") else ""
-        labels.append(f'<tr{empty}><td><span class="swatch" style="background:rgb({red},{green},{blue})"></span>'
-                      f'{_text(label["name"])}{within}</td><td class="n">{int(label["voxels"]):,}</td>'
-                      f'<td class="n">{float(label["ml"]):,.1f} mL</td></tr>')
-    present = {label_key(label["name"], label["label"]) for label in study.labels}
-    labels += [f'<tr class="missing"><td>{_text(name)}</td><td colspan="2">missing</td></tr>'
-               for name in missing if label_key(name) not in present]
-    labels += [f'<tr class="overlap"><td colspan="3">overlap: {" / ".join(_text(n) for n in overlap["names"])}, '
-                f'{int(overlap["voxels"]):,} voxels</td></tr>' for overlap in study.overlaps]
-    label_table = f'<table class="labels">{"".join(labels)}</table>' if labels else ""
-
-    kind = "failed" if study.error else ("flagged" if flags else "clean")
-    verdict = ('<div class="verdict">' + "".join(
-        f'<button type="button" data-give="{v}" title="{v} ({v[0]})">{v}</button>' for v in VERDICTS)
-        + f'<input class="note" type="text" placeholder="note (n)" value="{_text(study.note)}"></div>')
-    names = ", ".join(label["name"] for label in study.labels if label.get("voxels"))
-    cells = [f'<td class="n">{number}</td>', f'<td>{"".join(about)}{verdict}</td>', f'<td>{"".join(flags)}</td>',
-             f"<td>{sheet}</td>", f'<td class="views">{views}</td>', f"<td>{turntable}</td>", f"<td>{label_table}</td>"]
-    return (f'<tr class="{kind}" data-study="{_text(study.name)}" data-input="{_text(study.input)}" '
-            f'data-labels="{_text(names)}" data-verdict="{_text(study.verdict)}"{" hidden" if hidden else ""}>'
-            f'{"".join(cells)}</tr>')
+    return quote(PurePath(path).as_posix())
 
 
 _STYLE = """
@@ -310,7 +357,6 @@ td.n{text-align:right;font-variant-numeric:tabular-nums}
 .swatch{display:inline-block;width:10px;height:10px;margin-right:4px;border:1px solid #0004;vertical-align:-1px}
 tr.missing td{color:#8a5a00;font-weight:600}tr.missing td:first-child::after{content:" \\26A0"}
 tr.overlap td{color:#8a5a00}
-body.only-flagged tr.clean{display:none}
 .reason{font-size:12px;color:#5a3d00}
 .verdict{margin-top:4px}.verdict button{font-size:11px;margin:0 2px 2px 0;padding:1px 5px;border:1px solid #999;
  border-radius:3px;background:#fff;cursor:pointer}
@@ -322,154 +368,255 @@ tr.selected>td{background:#e8f0fe}tr.selected>td:first-child{box-shadow:inset 3p
 .keys{color:#666;font-size:11px}
 """
 
-# The turntable: the frame is the pointer's place across the picture (left edge the first frame, right edge the
-# last), so a mouse turns it by moving over it and a finger or pen by dragging (captured, so it may leave the
-# picture); the arrow keys step it.  Its frames are fetched when the pointer or the focus first comes to it, and
-# kept: a page of many studies loads none of them up front.
 _SCRIPT = r"""
-document.querySelectorAll("img.turntable").forEach(function (img) {
-  var frames = JSON.parse(img.dataset.frames), index = 0;
-  function load() {              // the frames, fetched once the pointer or the keyboard comes to the turntable
-    if (!img.preloaded) {
-      img.preloaded = frames.map(function (src) { var frame = new Image(); frame.src = src; return frame; });
-    }
-  }
-  img.addEventListener("pointerenter", load);
-  img.addEventListener("focus", load);
-  function show(i) {
-    i = Math.min(frames.length - 1, Math.max(0, i));
-    if (i !== index) { index = i; img.src = frames[i]; }
-  }
-  function follow(event) {
-    var box = img.getBoundingClientRect();
-    show(Math.floor((event.clientX - box.left) / box.width * frames.length));
-  }
-  img.addEventListener("pointerdown", function (event) { img.setPointerCapture(event.pointerId); follow(event); });
-  img.addEventListener("pointermove", follow);
-  img.addEventListener("keydown", function (event) {
-    var step = {ArrowLeft: -1, ArrowRight: 1}[event.key];
-    if (step) { event.preventDefault(); show((index + step + frames.length) % frames.length); }
-  });
-});
-document.getElementById("only-flagged").addEventListener("change", function (event) {
-  document.body.classList.toggle("only-flagged", event.target.checked);
-});
-
-// Verdicts: kept at once in this browser's local storage, keyed by the batch's folder and the study, over those
-// the page was written with (--verdicts); exported and imported as verdicts.csv.
+// The studies are data (the JSON block above); the rows of the page shown are built from them, so the browser lays
+// out, draws and fetches the pictures of a page of studies, whatever the cohort's size.
 (function () {
-  var rows = [].slice.call(document.querySelectorAll("tr[data-study]"));
-  var folder = location.pathname.replace(/[^/]*$/, ""), selected = -1;
+  var data = JSON.parse(document.getElementById("studies").textContent);
+  var legend = data.legend, studies = data.studies, PAGE = %PAGE%;
+  var body = document.querySelector("table.studies > tbody");
+  var show = document.getElementById("show"), search = document.getElementById("search");
   var reviewer = document.getElementById("reviewer");
-  function key(name) { return "voxrender:" + folder + ":" + name; }
-  function stored(row) {
-    try { return JSON.parse(localStorage.getItem(key(row.dataset.study)) || "null"); } catch (e) { return null; }
+  var folder = location.pathname.replace(/[^/]*$/, ""), prefix = "voxrender:" + folder + ":";
+  var byName = new Map(), written = studies.slice(), byNameOrder = null;
+  var order = written, matched = written, page = 0, rendered = [], current = null;
+
+  studies.forEach(function (study) {
+    study.verdict = study.verdict || "";
+    study.note = study.note || "";
+    study.kind = study.error ? "failed" : (study.missing || study.overlaps || study.flags ? "flagged" : "clean");
+    study.labelNames = (study.labels || []).filter(function (l) { return l[1] > 0; })
+      .map(function (l) { return legend[l[0]][0]; }).join(", ");
+    study.text = (study.name + " " + study.input + " " + study.labelNames).toLowerCase();
+    byName.set(study.name, study);
+  });
+
+  // Verdicts: kept at once in this browser's local storage, keyed by the batch's folder and the study, over those
+  // the page was written with (--verdicts); exported and imported as verdicts.csv.
+  try {
+    for (var i = 0; i < localStorage.length; i++) {
+      var name = localStorage.key(i), study = name.startsWith(prefix) && byName.get(name.slice(prefix.length));
+      if (study) {
+        study.kept = JSON.parse(localStorage.getItem(name)) || {};
+        study.verdict = study.kept.verdict || "";
+        study.note = study.kept.note || "";
+      }
+    }
+  } catch (e) { /* storage refused (a private window): the page's own verdicts stand */ }
+  function keep(study) {
+    study.kept = {verdict: study.verdict, note: study.note, reviewer: reviewer.value, time: new Date().toISOString()};
+    try { localStorage.setItem(prefix + study.name, JSON.stringify(study.kept)); } catch (e) {}
   }
-  function keep(row) {
-    var note = row.querySelector("input.note").value;
-    try {
-      localStorage.setItem(key(row.dataset.study), JSON.stringify({verdict: row.dataset.verdict, note: note,
-        reviewer: reviewer.value, time: new Date().toISOString()}));
-    } catch (e) { /* storage refused (a private window): the verdict stays on the page */ }
+
+  // A study's row.
+  function esc(text) {
+    return String(text).replace(/[&<>"']/g, function (c) { return "&#" + c.charCodeAt(0) + ";"; });
   }
-  function count() {
-    var done = rows.filter(function (row) { return row.dataset.verdict; }).length;
-    document.querySelector("#reviewed b").textContent = done;
+  function thumbnail(url, caption, kind) {
+    return '<figure><a href="' + esc(url) + '"><img src="' + esc(url) + '" loading="lazy" decoding="async" class="' +
+      kind + '" alt="' + esc(caption) + '"></a><figcaption>' + esc(caption) + "</figcaption></figure>";
   }
-  function give(row, verdict) { row.dataset.verdict = verdict; keep(row); count(); filter(); }
-  function select(k) {
-    if (!rows.length) { return; }
-    k = Math.min(rows.length - 1, Math.max(0, k));
-    if (selected >= 0) { rows[selected].classList.remove("selected"); }
-    selected = k;
-    rows[k].classList.add("selected");
-    rows[k].scrollIntoView({block: "nearest"});
+  var count = new Intl.NumberFormat("en-US");
+  var millilitres = new Intl.NumberFormat("en-US", {minimumFractionDigits: 1, maximumFractionDigits: 1});
+  function row(study) {
+    var flags = "", overlaps = study.overlaps || [], reasons = study.flags || [];
+    var missing = (study.missing || []).map(function (k) { return legend[k][0]; });
+    if (study.error) { flags += '<span class="flag bad">failed</span>'; }
+    if (missing.length) {
+      flags += '<span class="flag warn" title="' + esc(missing.join(", ")) + '">missing ' + missing.length + "</span>";
+    }
+    if (overlaps.length) { flags += '<span class="flag warn">overlap ' + overlaps.length + "</span>"; }
+    if (reasons.length) {
+      flags += '<span class="flag warn" title="' + esc(reasons.join("; ")) + '">flags ' + reasons.length + "</span>" +
+        reasons.slice(0, 6).map(function (r) { return '<div class="reason">' + esc(r) + "</div>"; }).join("");
+    }
+    var about = '<div class="name">' + esc(study.name) + '</div><div class="input">' + esc(study.input) + "</div>" +
+      (study.seconds == null ? "" : '<div class="input">' + study.seconds.toFixed(1) + " s</div>");
+    var verdict = '<div class="verdict">' + ["pass", "fail", "unsure"].map(function (v) {
+      return '<button type="button" data-give="' + v + '" title="' + v + " (" + v[0] + ')">' + v + "</button>";
+    }).join("") + '<input class="note" type="text" placeholder="note (n)" value="' + esc(study.note) + '"></div>';
+    var views = (study.error ? '<div class="error">' + esc(study.error) + "</div>" : "") +
+      (study.views || []).map(function (v) { return thumbnail(v[1], v[0], "view"); }).join("");
+    var frames = study.turntable || [];
+    var turntable = frames.length ? '<figure><img class="turntable" src="' + esc(frames[0]) + '" loading="lazy" ' +
+      'data-frames="' + esc(JSON.stringify(frames)) + '" tabindex="0" draggable="false" alt="turntable of ' +
+      esc(study.name) +
+      '"><figcaption>' + frames.length + " frames, move across</figcaption></figure>" : "";
+    // a label is matched by its key (the legend's last item): "hip right" is "hip_right"
+    var lacking = new Set((study.missing || []).map(function (k) { return legend[k][3]; })), present = new Set();
+    var labels = (study.labels || []).map(function (l) {
+      var name = legend[l[0]][0], colour = legend[l[0]][2];
+      present.add(legend[l[0]][3]);
+      return "<tr" + (lacking.has(legend[l[0]][3]) ? ' class="missing"' : "") + '><td><span class="swatch" ' +
+        'style="background:rgb(' + colour.join(",") + ')"></span>' + esc(name) +
+        (l[3] ? ' <span class="note">(' + esc(l[3]) + ")</span>" : "") + '</td><td class="n">' + count.format(l[1]) +
+        '</td><td class="n">' + millilitres.format(l[2]) + " mL</td></tr>";
+    }).concat((study.missing || []).filter(function (k) { return !present.has(legend[k][3]); }).map(function (k) {
+      return '<tr class="missing"><td>' + esc(legend[k][0]) + '</td><td colspan="2">missing</td></tr>';
+    }), overlaps.map(function (o) {
+      return '<tr class="overlap"><td colspan="3">overlap: ' + o.slice(0, -1).map(esc).join(" / ") + ", " +
+        count.format(o[o.length - 1]) + " voxels</td></tr>";
+    })).join("");
+    return '<tr class="' + study.kind + (study === current ? " selected" : "") + '" data-study="' +
+      esc(study.name) + '" data-input="' + esc(study.input) + '" data-labels="' + esc(study.labelNames) +
+      '" data-verdict="' + esc(study.verdict) + '"><td class="n">' + (written.indexOf(study) + 1) + "</td><td>" +
+      about + verdict + "</td><td>" + flags + "</td><td>" +
+      (study.sheet ? thumbnail(study.sheet, "QC sheet", "sheet") : "") + '</td><td class="views">' + views +
+      "</td><td>" + turntable + "</td><td>" + (labels ? '<table class="labels">' + labels + "</table>" : "") +
+      "</td></tr>";
   }
-  var PAGE = %PAGE%, page = 0, matched = rows.slice();
-  function step(by) {            // the next shown study that way, on the next page when it is there
-    var at = matched.indexOf(rows[selected]) + by;
-    if (at < 0 || at >= matched.length) { return; }
-    if (Math.floor(at / PAGE) !== page) { page = Math.floor(at / PAGE); paginate(); }
-    select(rows.indexOf(matched[at]));
-  }
-  function paginate() {          // the page of the matching studies shown; the rest hidden
+
+  // The page of the matching studies shown.
+  function render() {
     var pages = Math.max(1, Math.ceil(matched.length / PAGE));
-    page = Math.min(page, pages - 1);
-    var on = new Set(matched.slice(page * PAGE, (page + 1) * PAGE));
-    rows.forEach(function (row) { row.hidden = !on.has(row); });
+    page = Math.min(Math.max(page, 0), pages - 1);
+    var shown = matched.slice(page * PAGE, (page + 1) * PAGE);
+    if (shown.length !== rendered.length || shown.some(function (s, k) { return s !== rendered[k]; })) {
+      rendered = shown;
+      body.innerHTML = shown.map(row).join("");
+    }
     document.getElementById("page").textContent = "page " + (page + 1) + " of " + pages;
   }
-  document.querySelector('[data-action="previous-page"]').addEventListener("click", function () {
-    if (page > 0) { page--; paginate(); select(rows.indexOf(matched[page * PAGE])); }
-  });
-  document.querySelector('[data-action="next-page"]').addEventListener("click", function () {
-    if ((page + 1) * PAGE < matched.length) { page++; paginate(); select(rows.indexOf(matched[page * PAGE])); }
-  });
-  // What is shown: the rows that pass the filter and hold the search's words in their name, input or labels.
+  function element(study) { var k = rendered.indexOf(study); return k < 0 ? null : body.rows[k]; }
+  function studyOf(node) {
+    var tr = node.closest && node.closest("table.studies > tbody > tr");
+    return tr ? rendered[tr.sectionRowIndex] : null;
+  }
+  function select(study) {
+    if (!study) { return; }
+    var before = current && element(current);
+    if (before) { before.classList.remove("selected"); }
+    current = study;
+    var at = matched.indexOf(study);
+    if (at >= 0 && Math.floor(at / PAGE) !== page) { page = Math.floor(at / PAGE); render(); }
+    var tr = element(study);
+    if (tr) { tr.classList.add("selected"); tr.scrollIntoView({block: "nearest"}); }
+  }
+  function step(by) {            // the next shown study that way, on the next page when it is there
+    var at = matched.indexOf(current) + by;
+    if (at >= 0 && at < matched.length) { select(matched[at]); }
+  }
+  function turn(by) {
+    page += by;
+    if (page >= 0 && page * PAGE < matched.length) { render(); select(matched[page * PAGE]); }
+    else { page -= by; }
+  }
+
+  // What is shown: the studies that pass the filter and hold the search's words in their name, input or labels.
   var filters = {
     all: function () { return true; },
-    flagged: function (row) { return !row.classList.contains("clean"); },
-    unreviewed: function (row) { return !row.dataset.verdict; },
-    failed: function (row) { return row.classList.contains("failed"); },
-    fail: function (row) { return row.dataset.verdict === "fail"; }
+    flagged: function (s) { return s.kind !== "clean"; },
+    unreviewed: function (s) { return !s.verdict; },
+    failed: function (s) { return s.kind === "failed"; },
+    fail: function (s) { return s.verdict === "fail"; }
   };
-  var show = document.getElementById("show"), search = document.getElementById("search");
-  function filter() {
+  function filter(event, place) {
     var words = search.value.toLowerCase().split(/\s+/).filter(Boolean);
-    var current = rows[selected];
-    matched = rows.filter(function (row) {
-      var text = (row.dataset.study + " " + row.dataset.input + " " + row.dataset.labels).toLowerCase();
-      return filters[show.value](row) && words.every(function (w) { return text.indexOf(w) >= 0; });
+    matched = order.filter(function (s) {
+      return filters[show.value](s) && words.every(function (w) { return s.text.indexOf(w) >= 0; });
     });
-    var at = matched.indexOf(current);
-    if (at >= 0) { page = Math.floor(at / PAGE); }
-    paginate();
     [].forEach.call(show.options, function (option) {
-      var n = rows.filter(filters[option.value]).length;
-      option.textContent = option.textContent.replace(/ \(\d+\)$/, "") + " (" + n + ")";
+      option.textContent = option.textContent.replace(/ \(\d+\)$/, "") + " (" + order.filter(filters[option.value])
+        .length + ")";
     });
-    if (selected >= 0 && rows[selected].hidden) {
-      var first = rows.findIndex(function (row) { return !row.hidden; });
-      if (first >= 0) { select(first); }
-    }
+    document.querySelector("#reviewed b").textContent = studies.filter(function (s) { return s.verdict; }).length;
+    var at = matched.indexOf(current);
+    if (at >= 0) { page = Math.floor(at / PAGE); render(); select(current); return; }
+    // the selected study left the view: the first shown, or after a verdict under "no verdict yet" the next one
+    render();
+    if (matched.length) { select(matched[Math.min(place || 0, matched.length - 1)]); }
   }
+  function give(study, verdict) {
+    study.verdict = verdict;
+    keep(study);
+    var tr = element(study);
+    if (tr) { tr.dataset.verdict = verdict; }
+    filter(null, matched.indexOf(study));
+  }
+
   show.addEventListener("change", filter);
   search.addEventListener("input", filter);
-  search.addEventListener("keydown", function (event) {   // typing searches; Enter or Escape hands the keys back
-    if (event.key === "Enter" || event.key === "Escape") { search.blur(); }
-    event.stopPropagation();
-  });
-  rows.forEach(function (row) {
-    var earlier = stored(row);
-    if (earlier) {
-      row.dataset.verdict = earlier.verdict || "";
-      row.querySelector("input.note").value = earlier.note || "";
+  document.getElementById("order").addEventListener("change", function (event) {
+    if (event.target.value === "name" && !byNameOrder) {
+      var collator = new Intl.Collator(undefined, {numeric: true});
+      byNameOrder = written.slice().sort(function (a, b) { return collator.compare(a.name, b.name); });
     }
-    row.querySelectorAll("button[data-give]").forEach(function (button) {
-      button.addEventListener("click", function () { select(rows.indexOf(row)); give(row, button.dataset.give); });
-    });
-    var note = row.querySelector("input.note");
-    note.addEventListener("input", function () { keep(row); });
-    note.addEventListener("keydown", function (event) {
-      if (event.key === "Enter" || event.key === "Escape") { note.blur(); }
-      event.stopPropagation();
-    });
-    row.addEventListener("click", function () { select(rows.indexOf(row)); });
+    order = event.target.value === "name" ? byNameOrder : written;
+    filter();
   });
-  try { reviewer.value = localStorage.getItem("voxrender:reviewer") || ""; } catch (e) {}
+  document.querySelector('[data-action="previous-page"]').addEventListener("click", function () { turn(-1); });
+  document.querySelector('[data-action="next-page"]').addEventListener("click", function () { turn(1); });
+
+  // The rows' own controls, listened to once for all rows.
+  body.addEventListener("click", function (event) {
+    var study = studyOf(event.target), button = event.target.closest("button[data-give]");
+    if (!study) { return; }
+    select(study);
+    if (button) { give(study, button.dataset.give); }
+  });
+  body.addEventListener("input", function (event) {
+    var study = studyOf(event.target);
+    if (study && event.target.matches("input.note")) { study.note = event.target.value; keep(study); }
+  });
+
+  // The turntable: the frame is the pointer's place across the picture (left edge the first frame, right edge the
+  // last), so a mouse turns it by moving over it and a finger or pen by dragging (captured, so it may leave the
+  // picture); the arrow keys step it.  Its frames are fetched when the pointer or the focus first comes to it, and
+  // let go with its row when the page turns.
+  function turntable(event) { return event.target.closest && event.target.closest("img.turntable"); }
+  function frames(img) { return img.frames || (img.frames = JSON.parse(img.dataset.frames)); }
+  function load(event) {
+    var img = turntable(event);
+    if (img && !img.preloaded) {
+      img.preloaded = frames(img).map(function (src) { var frame = new Image(); frame.src = src; return frame; });
+    }
+  }
+  function showFrame(img, k) {
+    var all = frames(img);
+    k = Math.min(all.length - 1, Math.max(0, k));
+    if (k !== (img.frame || 0)) { img.frame = k; img.src = all[k]; }
+  }
+  function follow(event) {
+    var img = turntable(event);
+    if (img) {
+      var box = img.getBoundingClientRect();
+      showFrame(img, Math.floor((event.clientX - box.left) / box.width * frames(img).length));
+    }
+  }
+  body.addEventListener("pointerover", load);
+  body.addEventListener("focusin", load);
+  body.addEventListener("pointerdown", function (event) {
+    var img = turntable(event);
+    if (img) { img.setPointerCapture(event.pointerId); follow(event); }
+  });
+  body.addEventListener("pointermove", follow);
+
+  reviewer.value = (function () { try { return localStorage.getItem("voxrender:reviewer") || ""; } catch (e) {} })()
+    || "";
   reviewer.addEventListener("input", function () {
     try { localStorage.setItem("voxrender:reviewer", reviewer.value); } catch (e) {}
   });
-  reviewer.addEventListener("keydown", function (event) { event.stopPropagation(); });
   document.addEventListener("keydown", function (event) {
-    if (event.ctrlKey || event.metaKey || event.altKey || selected < 0) { return; }
-    var row = rows[selected];
-    var moves = {j: 1, ArrowDown: 1, k: -1, ArrowUp: -1};
-    var verdicts = {p: "pass", f: "fail", u: "unsure"};
-    if (event.key in moves) { event.preventDefault(); step(moves[event.key]); }
-    else if (event.key in verdicts) { event.preventDefault(); give(row, verdicts[event.key]); }
-    else if (event.key === "n") { event.preventDefault(); row.querySelector("input.note").focus(); }
+    var target = event.target;
+    if (target.matches && target.matches("input")) {    // typing; Enter or Escape hands the keys back
+      if (event.key === "Enter" || event.key === "Escape") { target.blur(); }
+      return;
+    }
+    if (event.ctrlKey || event.metaKey || event.altKey || !current) { return; }
+    var moves = {j: 1, ArrowDown: 1, k: -1, ArrowUp: -1}, verdicts = {p: "pass", f: "fail", u: "unsure"};
+    var spin = {ArrowLeft: -1, ArrowRight: 1}[event.key];
+    if (spin && turntable(event)) {
+      event.preventDefault();
+      var n = frames(target).length;
+      showFrame(target, ((target.frame || 0) + spin + n) % n);
+    } else if (event.key in moves) { event.preventDefault(); step(moves[event.key]); }
+    else if (event.key in verdicts) { event.preventDefault(); give(current, verdicts[event.key]); }
+    else if (event.key === "n") {
+      var tr = element(current);
+      if (tr) { event.preventDefault(); tr.querySelector("input.note").focus(); }
+    }
   });
+
   function cell(text) {          // quoted, and a text a spreadsheet would run as a formula kept as text
     text = String(text == null ? "" : text);
     if (/^[=+\-@\t\r]/.test(text) && isNaN(Number(text))) { text = "'" + text; }
@@ -477,10 +624,9 @@ document.getElementById("only-flagged").addEventListener("change", function (eve
   }
   document.querySelector('[data-action="export"]').addEventListener("click", function () {
     var lines = ["study,input,labels,verdict,note,reviewer,time"];
-    rows.forEach(function (row) {
-      var kept = stored(row) || {};
-      lines.push([row.dataset.study, row.dataset.input, row.dataset.labels, row.dataset.verdict,
-                  row.querySelector("input.note").value, kept.reviewer || reviewer.value, kept.time || ""]
+    order.forEach(function (s) {
+      var kept = s.kept || {};
+      lines.push([s.name, s.input, s.labelNames, s.verdict, s.note, kept.reviewer || reviewer.value, kept.time || ""]
                  .map(cell).join(","));
     });
     var link = document.createElement("a");
@@ -491,7 +637,7 @@ document.getElementById("only-flagged").addEventListener("change", function (eve
     link.remove();
   });
   function parse(text) {         // RFC 4180: quoted fields, doubled quotes, CRLF or LF
-    var table = [], row = [], field = "", quoted = false;
+    var table = [], fields = [], field = "", quoted = false;
     for (var i = 0; i < text.length; i++) {
       var c = text[i];
       if (quoted) {
@@ -499,13 +645,13 @@ document.getElementById("only-flagged").addEventListener("change", function (eve
         else if (c === '"') { quoted = false; }
         else { field += c; }
       } else if (c === '"') { quoted = true; }
-      else if (c === ",") { row.push(field); field = ""; }
+      else if (c === ",") { fields.push(field); field = ""; }
       else if (c === "\n" || c === "\r") {
         if (c === "\r" && text[i + 1] === "\n") { i++; }
-        row.push(field); table.push(row); row = []; field = "";
+        fields.push(field); table.push(fields); fields = []; field = "";
       } else { field += c; }
     }
-    if (field || row.length) { row.push(field); table.push(row); }
+    if (field || fields.length) { fields.push(field); table.push(fields); }
     return table;
   }
   function plain(text) { return /^'[=+\-@\t\r]/.test(text) ? text.slice(1) : text; }
@@ -514,46 +660,33 @@ document.getElementById("only-flagged").addEventListener("change", function (eve
   picker.addEventListener("change", function () {
     if (!picker.files.length) { return; }
     picker.files[0].text().then(function (text) {
-      var table = parse(text.replace(/^\ufeff/, "")), head = table.shift() || [];
-      var at = {};
+      var table = parse(text.replace(/^\ufeff/, "")), head = table.shift() || [], at = {};
       head.forEach(function (name, k) { at[name.trim()] = k; });
-      var byName = {};
-      rows.forEach(function (row) { byName[row.dataset.study] = row; });
       table.forEach(function (fields) {
-        var row = byName[plain(fields[at.study] || "")];
+        var study = byName.get(plain(fields[at.study] || ""));
         var verdict = (fields[at.verdict] || "").trim().toLowerCase();
-        if (!row || (verdict && ["pass", "fail", "unsure"].indexOf(verdict) < 0)) { return; }
-        row.dataset.verdict = verdict;
-        row.querySelector("input.note").value = plain(fields[at.note] || "");
-        keep(row);
+        if (!study || (verdict && ["pass", "fail", "unsure"].indexOf(verdict) < 0)) { return; }
+        study.verdict = verdict;
+        study.note = plain(fields[at.note] || "");
+        keep(study);
       });
-      count();
+      rendered = [];             // the rows shown, written again with their verdicts and notes
       filter();
       picker.value = "";
     });
   });
-  var body = document.querySelector("table.studies > tbody"), written = rows.slice();
-  document.getElementById("order").addEventListener("change", function (event) {
-    var current = rows[selected];
-    rows = written.slice();
-    if (event.target.value === "name") {
-      rows.sort(function (a, b) { return a.dataset.study.localeCompare(b.dataset.study, undefined, {numeric: true}); });
-    }
-    rows.forEach(function (row) { body.appendChild(row); });
-    selected = rows.indexOf(current);
-    filter();
-  });
-  count();
-  select(0);
+
+  current = studies[0] || null;
   filter();
 })();
 """
 
+_DATA_START = '<script type="application/json" id="studies">'
 _PAGE = """<!doctype html>
 <html lang="en"><head><meta charset="utf-8"><meta name="viewport" content="width=device-width">
 <link rel="icon" href="data:,"><title>{title}</title><style>{style}</style></head>
 <body><h1>{title}</h1>
-<div class="summary">{summary}<label><input type="checkbox" id="only-flagged"> only studies with a flag</label>
+<div class="summary">{summary}
 <label>order <select id="order"><option value="worst">worst first</option><option value="name">by name</option>
 </select></label>
 <label>show <select id="show"><option value="all">all</option><option value="flagged">flagged</option>
@@ -569,9 +702,8 @@ _PAGE = """<!doctype html>
 <span class="keys">j/k: next, previous; p/f/u: pass, fail, unsure; n: note</span></div>
 <table class="studies"><thead><tr><th>#</th><th>study</th><th>flags</th><th>sheet</th><th>views</th><th>turntable</th>
 <th>labels</th></tr></thead>
-<tbody>
-{rows}
-</tbody></table>
+<tbody></tbody></table>
+<script type="application/json" id="studies">{data}</script>
 <script>{script}</script>
 </body></html>
 """
