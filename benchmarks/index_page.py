@@ -138,19 +138,46 @@ def bench_index_browser(studies=10_000, batch=300, repeat=3):
     return result
 
 
-def _bench_real_batch(browser, folder, count, repeat):
-    """``count`` small distinct studies through ``voxrender batch --turntable 6 --sheet``, and their page opened."""
+def make_cohort_batch(folder, count):
+    """``count`` small TotalSegmentator-like studies in ``folder``: a CT (``.nii.gz``) and a folder of masks (liver,
+    spleen, kidney_left) each, of sizes that vary, every 30th without its spleen, every 45th with a liver three times
+    the size (touching the spleen), every 60th a missing file; and ``studies.csv``, their manifest.  Written by
+    nibabel, as the tools write them."""
+    import nibabel as nib
     import numpy as np
 
+    z, y, x = np.mgrid[:32, :32, :32].astype(np.float32)
+    organs = {"liver": (11, 16, 16, 7.0), "spleen": (24, 12, 16, 4.0), "kidney_left": (22, 23, 10, 3.5)}
+    lines = ["name,input,labels"]
+    for n in range(count):
+        name = f"study-{n:03d}"
+        lines.append(f"{name},{name}/ct.nii.gz,{name}/segmentations")
+        if n % 60 == 59:
+            continue                                                 # a failed study: its files were never made
+        masks = folder / name / "segmentations"
+        masks.mkdir(parents=True)
+        ct = np.full(x.shape, -100, np.int16)
+        for organ, (cx, cy, cz, radius) in organs.items():
+            radius *= 1 + 0.1 * np.sin(n * (1 + len(organ)))         # each study its own size
+            if organ == "liver" and n % 45 == 20:
+                radius *= 3 ** (1 / 3)
+            inside = (x - cx) ** 2 + (y - cy) ** 2 + (z - cz) ** 2 <= radius ** 2
+            ct[inside] = 60
+            if not (organ == "spleen" and n % 30 == 10):
+                nib.save(nib.Nifti1Image(inside.astype(np.uint8), np.diag([1.5, 1.5, 1.5, 1])),
+                         masks / f"{organ}.nii.gz")
+        nib.save(nib.Nifti1Image(ct, np.diag([1.5, 1.5, 1.5, 1])), folder / name / "ct.nii.gz")
+    (folder / "studies.csv").write_text("\n".join(lines) + "\n")
+
+
+def _bench_real_batch(browser, folder, count, repeat):
+    """:func:`make_cohort_batch` through ``voxrender batch --turntable 6 --sheet``, and its page opened."""
     folder.mkdir()
-    z, y, x = np.mgrid[:24, :24, :24]
-    for n in range(count):             # ellipsoids of 60 sizes: every study its own encode and pictures
-        inside = (x - 12) ** 2 + (y - 12) ** 2 / 0.6 + (z - 12) ** 2 < 40 + n % 60
-        np.save(folder / f"s{n:03d}.npy", np.where(inside, 1000, 0).astype(np.int16))
+    make_cohort_batch(folder, count)
     started = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "voxrender.cli", "batch", str(folder / "*.npy"), "--threshold", "500",
+    subprocess.run([sys.executable, "-m", "voxrender.cli", "batch", "--manifest", str(folder / "studies.csv"),
                     "--turntable", "6", "--size", "64", "--sheet", "--slices", "axial", "-o", str(folder / "out")],
-                   check=True, capture_output=True)
+                   capture_output=True)                              # exit 2: the failed studies
     batch_s = time.perf_counter() - started
     loads, turns = [], []
     for _ in range(repeat):

@@ -204,7 +204,7 @@ def test_flags_errors_and_counts_are_shown(opened):
     rows = page.locator("table.studies > tbody > tr")
     assert rows.count() == 4
     summary = " ".join(page.locator(".summary").inner_text().split())
-    for count in ("4 studies", "1 failed", "1 with missing labels", "1 with overlaps"):
+    for count in ("4 studies", "3 flagged", "1 failed", "1 with missing labels", "1 with overlaps"):
         assert count in summary
 
     head, chest, abdomen, broken = (rows.nth(k) for k in range(4))

@@ -13,6 +13,8 @@ _FACE = {
     "slice_picture": "slices",
     "SlicePoint": "slices",
     "write_index": "index_page",
+    "read_index": "index_page",
+    "StudyRow": "index_page",
 }
 __all__ = list(_FACE)
 __getattr__, __dir__ = face(__name__, _FACE)

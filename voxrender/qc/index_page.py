@@ -200,7 +200,9 @@ def write_index(path, studies, title="voxrender batch"):
     studies = [studies[k] for k in sorted(range(len(studies)),
                                           key=lambda k: (not studies[k].flags, tuple(studies[k].severity), k))]
     counts = [(len(studies), "studies", ""),
-              (sum(bool(study.flags) for study in studies), "flagged", "warn"),
+              # what "show flagged" shows: a cohort flag, a failure, a missing label or an overlap
+              (sum(bool(study.flags or study.error or study.overlaps or study.name in missing) for study in studies),
+               "flagged", "warn"),
               (sum(bool(study.error) for study in studies), "failed", "bad"),
               (len(missing), "with missing labels", "warn"),
               (sum(bool(study.overlaps) for study in studies if not study.error), "with overlaps", "warn")]
@@ -381,9 +383,10 @@ _SCRIPT = r"""
   var byName = new Map(), written = studies.slice(), byNameOrder = null;
   var order = written, matched = written, page = 0, rendered = [], current = null;
 
-  studies.forEach(function (study) {
+  studies.forEach(function (study, k) {
     study.verdict = study.verdict || "";
     study.note = study.note || "";
+    study.number = k + 1;
     study.kind = study.error ? "failed" : (study.missing || study.overlaps || study.flags ? "flagged" : "clean");
     study.labelNames = (study.labels || []).filter(function (l) { return l[1] > 0; })
       .map(function (l) { return legend[l[0]][0]; }).join(", ");
@@ -459,7 +462,7 @@ _SCRIPT = r"""
     })).join("");
     return '<tr class="' + study.kind + (study === current ? " selected" : "") + '" data-study="' +
       esc(study.name) + '" data-input="' + esc(study.input) + '" data-labels="' + esc(study.labelNames) +
-      '" data-verdict="' + esc(study.verdict) + '"><td class="n">' + (written.indexOf(study) + 1) + "</td><td>" +
+      '" data-verdict="' + esc(study.verdict) + '"><td class="n">' + study.number + "</td><td>" +
       about + verdict + "</td><td>" + flags + "</td><td>" +
       (study.sheet ? thumbnail(study.sheet, "QC sheet", "sheet") : "") + '</td><td class="views">' + views +
       "</td><td>" + turntable + "</td><td>" + (labels ? '<table class="labels">' + labels + "</table>" : "") +

@@ -123,20 +123,28 @@ def in_words(flag):
 
     >>> in_words({"flag": "volume", "value": 400.0, "cohort": 1500.0, "z": -10.2, "name": "liver"})
     'liver: volume 400 mL, the cohort 1500 (z -10.2)'
+    >>> in_words({"flag": "volume", "value": 15.042, "cohort": 4.6069, "z": 6.5213, "name": "liver"})
+    'liver: volume 15 mL, the cohort 4.61 (z 6.52)'
     """
     what = flag["flag"]
     name = flag.get("name") or f"label {flag.get('label')}"
     if what == "volume":
-        return f"{name}: volume {flag['value']:g} mL, the cohort {flag['cohort']:g} (z {flag['z']:g})"
+        value, cohort, z = (_three_digits(flag[key]) for key in ("value", "cohort", "z"))
+        return f"{name}: volume {value} mL, the cohort {cohort} (z {z})"
     if what == "empty":
         return f"{name}: empty"
     if what == "missing":
         return f"{name}: missing (in {flag['cohort']})"
     if what == "components":
-        return f"{name}: {flag['value']} pieces, the cohort {flag['cohort']:g}"
+        return f"{name}: {flag['value']} pieces, the cohort {_three_digits(flag['cohort'])}"
     if what == "border":
         return f"{name}: touches the edge of the field of view"
     return f"{name}: {what} {flag['value']:.3f}, below {flag['limit'].removeprefix('>= ')}"
+
+
+def _three_digits(value):
+    """A number as a reader takes it in: three significant digits, never in exponent form."""
+    return f"{float(f'{value:.3g}'):g}" if abs(value) < 1e6 else f"{value:.0f}"
 
 
 def severity(flags):
