@@ -74,8 +74,15 @@ def wheel_check():
         demo = elsewhere / "demo.png"
         if not demo.is_file() or demo.stat().st_size == 0:
             sys.exit(f"voxrender demo wrote no picture to {demo}")
-        print(f"{wheel.name}: installed outside the checkout, voxrender {installed} imports and `voxrender demo` "
-              f"wrote {demo.stat().st_size} bytes")
+        # a batch's index page: its style and script are package data the wheel must carry
+        run(bin_folder / "voxrender", "samples", "samples", "--name", "sphere", cwd=elsewhere)
+        run(bin_folder / "voxrender", "batch", "samples/sphere.nii.gz", "--threshold", "500", "--size", "32", "-o",
+            "batch", cwd=elsewhere)
+        page = (elsewhere / "batch" / "index.html").read_text()
+        if "function thumbnail(" not in page or ".flag.bad{" not in page:
+            sys.exit("the index page of the installed package lacks its script or its style")
+        print(f"{wheel.name}: installed outside the checkout, voxrender {installed} imports, `voxrender demo` "
+              f"wrote {demo.stat().st_size} bytes, and a batch's index page has its script and style")
 
 
 def renew_constraints():
