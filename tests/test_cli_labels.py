@@ -356,6 +356,13 @@ def test_info_of_an_image_and_its_label_map_tells_both_grids_and_how_they_relate
     assert set(summary["labels"]) == {"1", "2", "3"} and all(v["voxels"] > 0 for v in summary["labels"].values())
     text = run("info", ct_file, "--labels-from", tmp_path / "coarse.nii.gz").stdout
     assert "\n  relation: shifted by" in text and "\nlabels: 3\n  1 label 1: " in text
+    # a notebook asks the library for the same records
+    import voxrender
+    from voxrender.object.prep import LabelSelection
+
+    described = voxrender.describe(ct_file, prepare=voxrender.PrepOptions(
+        labels=LabelSelection(source=tmp_path / "coarse.nii.gz")))
+    assert json.loads(json.dumps(described, default=float)) == summary
 
 
 def test_info_of_a_mask_folder_lists_empty_masks_and_overlaps(tmp_path):

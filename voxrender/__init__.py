@@ -36,6 +36,7 @@ __version__ = "0.2.0"
 # The public face: name -> the module that defines it (imported when the name is first used).
 _PUBLIC = {
     "snapshot": "._snapshot",
+    "describe": ".qc.description",
     "read_volume": ".io",
     "Volume": ".io",
     "READERS": ".io",
