@@ -52,7 +52,7 @@ from benchmarks.index_page import bench_index_browser, bench_index_page
 from benchmarks.masks import bench_mask_folder
 from benchmarks.studies import HERE
 from voxrender import io
-from voxrender._render import DEFAULT_METHOD, METHODS, render
+from voxrender._render import DEFAULT_METHOD, METHODS, octree_for, render
 from voxrender.object import prep, segments, vxs
 from voxrender.object.pipeline import Encoded
 from voxrender.space.view import View
@@ -75,7 +75,7 @@ def timed_methods():
 def rendered(obj, view, method, **options):
     """``render`` of an :class:`Encoded` object; octree methods get the octree kept with it (built once, as
     the papers start from the octree).  A view without a scale fits the whole volume (as the papers' tables do)."""
-    return render(obj.segments, view, method, fit="volume", tree=obj.tree_for(method), **options)
+    return render(obj.segments, view, method, fit="volume", tree=octree_for(method, obj), **options)
 
 
 def bench_read(path, volume, repeat):

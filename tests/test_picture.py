@@ -13,7 +13,8 @@ from voxrender._render import METHODS, Clip
 from voxrender.cli import main
 from voxrender.errors import InputError
 from voxrender.object.pipeline import PrepOptions, load_segments
-from voxrender.pictures._picture import Outputs, RenderOptions, picture, write_outputs
+from voxrender.outputs.picture_outputs import Outputs, write_outputs
+from voxrender.pictures._picture import RenderOptions, picture
 from voxrender.space.view import View
 
 ANGLES = (30.0, 20.0, 10.0)
@@ -127,7 +128,8 @@ output_kinds.OUTPUTS["coverage_png"] = output_kinds.OutputKind(
     lambda path, result, about: output.write_png(path, result.image.coverage.astype(np.uint8) * 255), "coverage-png")
 
 from voxrender.cli import main
-from voxrender.pictures._picture import Outputs, picture, write_outputs
+from voxrender.outputs.picture_outputs import Outputs, write_outputs
+from voxrender.pictures._picture import picture
 from voxrender.object.segments import encode
 from voxrender.space.view import View
 

@@ -18,8 +18,9 @@ from voxrender.io import Volume
 from voxrender.object.pipeline import PrepOptions, load_segments
 from voxrender.object.prep import LabelSelection
 from voxrender.outputs import output_kinds
+from voxrender.outputs.picture_outputs import Outputs, about, write_outputs
 from voxrender.outputs.secondary_capture import DicomStudy, describe, dicom_study, write_secondary_capture
-from voxrender.pictures._picture import Outputs, RenderOptions, about, picture, write_outputs
+from voxrender.pictures._picture import RenderOptions, picture
 
 SHAPE = (12, 20, 24)
 

@@ -8,11 +8,10 @@ import numpy as np
 
 from ._render import DEFAULT_METHOD
 from .errors import InputError
-from .io import Volume, check_spacing
-from .io._shared import real_numbers
+from .io import Volume, check_spacing, real_numbers
 from .object.pipeline import AUTO, PrepOptions, ReadOptions, encode_volume, load_segments
 from .object.prep import LabelSelection
-from .pictures._picture import RenderOptions, picture
+from .pictures import RenderOptions, picture
 from .space.view import PRESETS, View
 
 

@@ -26,7 +26,7 @@ from skimage.draw import polygon2mask
 from voxrender import io
 from voxrender._shared import label_sets
 from voxrender.errors import InputError
-from voxrender.io._dicomfile import is_rtstruct
+from voxrender.io.dicomfile import is_rtstruct
 from voxrender.io.rtstruct import check_reference, fill_even_odd, read_rtstruct
 from voxrender.object.pipeline import read_labels
 

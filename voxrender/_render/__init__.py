@@ -26,7 +26,8 @@ from .octree_sort import render_octree_sort, render_zbuffer
 from .preimage import render_preimage
 from .raycast import render_raycast
 
-__all__ = ["Method", "METHODS", "DEFAULT_METHOD", "DepthImage", "Clip", "render", "method_record", "framing_box"]
+__all__ = ["Method", "METHODS", "DEFAULT_METHOD", "DepthImage", "Clip", "render", "method_record", "octree_for",
+           "framing_box"]
 
 
 @dataclass(frozen=True)
@@ -94,6 +95,13 @@ def method_record(name, options=()):
         raise InputError(f"method {name!r} takes no option {unknown[0]!r} "
                          f"(its options: {', '.join(record.options) or 'none'})", parameter=unknown[0])
     return record
+
+
+def octree_for(method, encoded, max_memory=None):
+    """The region octree of ``encoded`` (a :class:`~voxrender.object.pipeline.Encoded`, which builds it once) when
+    ``method`` traverses one, else ``None``; an octree that would need more than ``max_memory`` bytes is refused.
+    """
+    return encoded.octree(max_memory) if method_record(method).octree else None
 
 
 @dataclass

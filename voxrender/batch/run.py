@@ -42,16 +42,16 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from .._render import framing_box, method_record
+from .._render import framing_box, method_record, octree_for
 from .._shared.executors import executor, why_died
 from .._shared.files import atomic_output, check_folder_writable, remove_partials
 from .._shared.text import from_spreadsheet_cell, spreadsheet_cell
 from ..errors import InputError
 from ..object.pipeline import PrepOptions, ReadOptions, is_segments_file, load_segments
 from ..object.prep import LabelSelection
-from ..outputs import output
+from ..outputs import Outputs, about, output, write_outputs
 from ..outputs.output_kinds import OUTPUTS, fields_per_output
-from ..pictures._picture import Outputs, RenderOptions, about, picture, write_outputs
+from ..pictures import RenderOptions, picture
 from ..space.view import PRESETS, angles_from_matrix, frame_together, rotation_matrix
 from . import parse
 
@@ -125,7 +125,7 @@ def parse_views(names=(), angles=(), turntable_count=None, axis="z"):
 @fields_per_output(str, picture="{name}/{view}.png")
 class Patterns:
     """Where a batch writes each picture: a pattern per output (a field per record of
-    :data:`voxrender.outputs.output_kinds.OUTPUTS`, as :class:`~voxrender.pictures._picture.Outputs` has), with
+    :data:`voxrender.outputs.output_kinds.OUTPUTS`, as :class:`~voxrender.outputs.picture_outputs.Outputs` has), with
     ``{name}``, ``{view}``, ``{method}`` and ``{index}``, relative to the batch's folder; ``None`` for an output not
     wanted.
 
@@ -134,8 +134,8 @@ class Patterns:
     """
 
     def outputs(self, out_dir, **fields):
-        """The :class:`~voxrender.pictures._picture.Outputs` of one picture: each pattern filled in with ``fields``; an
-        :class:`InputError` names the output whose pattern is not valid.
+        """The :class:`~voxrender.outputs.picture_outputs.Outputs` of one picture: each pattern filled in with
+        ``fields``; an :class:`InputError` names the output whose pattern is not valid.
         """
         paths = {}
         for name, pattern in asdict(self).items():
@@ -178,7 +178,7 @@ class Item:
         return picture_path.with_name(f"{picture_path.stem}-label{label}{picture_path.suffix}")
 
     def outputs(self, out_dir, view, index):
-        """The :class:`~voxrender.pictures._picture.Outputs` of one view of the item, in ``out_dir``."""
+        """The :class:`~voxrender.outputs.picture_outputs.Outputs` of one view of the item, in ``out_dir``."""
         return self.patterns.outputs(out_dir, name=self.name, view=view.label, method=self.method, index=index)
 
     def output(self, out_dir, view, index):
@@ -561,7 +561,7 @@ def _render_task(item, view, index, segments_path, out_dir, encode_seconds):
         encoded = _encoded(str(segments_path), stamp)
         study = _study(str(segments_path), stamp) if item.needs_grey else None
         result = picture(encoded.segments, framed(item, view, encoded.segments), item.options,
-                         tree=encoded.tree_for(item.method), study=study)
+                         tree=octree_for(item.method, encoded), study=study)
         told = about(encoded.segments)
         if outputs.dicom is not None:
             told.update(_dicom_fields(item, out_dir, index))
@@ -625,8 +625,8 @@ def framed(item, view, encoded):
 
 
 def _is_done(outputs, size):
-    """Whether a view's :class:`~voxrender.pictures._picture.Outputs` are finished: its picture a readable PNG of the
-    expected ``size = (H, W)``, and each other output there (each is written whole or not at all).
+    """Whether a view's :class:`~voxrender.outputs.picture_outputs.Outputs` are finished: its picture a readable
+    PNG of the expected ``size = (H, W)``, and each other output there (each is written whole or not at all).
     """
     return _png_size(outputs.picture) == tuple(size) and all(path.is_file() for path in outputs.wanted().values())
 

@@ -19,8 +19,7 @@ from ..object import prep
 from ..object.pipeline import AUTO, PrepOptions, ReadOptions, is_segments_file
 from ..outputs import output
 from ..outputs.output_kinds import OUTPUTS
-from ..pictures import colours
-from ..pictures._picture import PROJECTIONS, RenderOptions
+from ..pictures import PROJECTIONS, RenderOptions, colours
 from ..pictures.shade import HEADLIGHT, SHADINGS
 from ..qc.slices import OVERLAYS
 from ..space import orient

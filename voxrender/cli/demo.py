@@ -13,7 +13,7 @@ from .._shared.files import check_writable
 from ..errors import InputError
 from ..object.pipeline import PrepOptions, ReadOptions, load_segments
 from ..outputs import output
-from ..pictures._picture import RenderOptions, picture
+from ..pictures import RenderOptions, picture
 from ..qc.sheet import sheet
 from ..space.view import PRESETS
 from ._main import main, progress

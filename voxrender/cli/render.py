@@ -6,10 +6,12 @@ from pathlib import Path
 
 import click
 
+from .._render import octree_for
 from ..batch import parse
 from ..object.pipeline import level_for_picture, load_segments
+from ..outputs import Outputs, about, write_outputs
 from ..outputs.output_kinds import LABEL_ROWS, LABELS, OUTPUTS
-from ..pictures._picture import Outputs, about, picture, write_outputs
+from ..pictures import picture
 from ..space.view import PRESETS
 from ._main import main, progress
 from ._options import (
@@ -67,6 +69,6 @@ def render_command(input_path, output_path, **options):
                                               if OUTPUTS[name].needs in (LABELS, LABEL_ROWS)}})
     max_memory = parse.memory(options["max_memory"]) if options["max_memory"] else None
     result = picture(loaded.segments, render_options.view(*angles), render_options, progress,
-                     loaded.tree_for(render_options.method, max_memory), study=study)
+                     octree_for(render_options.method, loaded, max_memory), study=study)
     result.seconds = {**loaded.seconds, **result.seconds}
     write_outputs(result, outputs, {**about(loaded.segments), **joins})   # an empty picture was warned of

@@ -14,8 +14,7 @@ from ..errors import InputError
 from ..object import prep
 from ..object.pipeline import Encoded, PrepOptions, load_segments
 from ..outputs import output
-from ..pictures import colours
-from ..pictures._picture import label_table
+from ..pictures import colours, label_table
 from ..qc.sheet import render_sheet, sheet
 from ..space.view import PRESETS
 from ._main import flag, main, progress

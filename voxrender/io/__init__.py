@@ -43,12 +43,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
+import numpy as np  # noqa: F401 (the examples below use it)
 
 from ..errors import InputError
-from ..space import orient
-from ..space.grids import voxel_affine
 from . import dicom, images, masks, metaimage, nifti, npy, nrrd, raw, seg, tiff, zarr
+from ._reading import options_for, placed, read_with
 from ._shared import (
     RawLayout,
     Reader,
@@ -63,7 +62,7 @@ from ._shared import (
 )
 
 __all__ = ["Volume", "RawLayout", "Reader", "READERS", "FORMATS", "read_volume", "open_stack", "detect_format",
-           "natural_key", "check_spacing", "slices_at"]
+           "natural_key", "check_spacing", "slices_at", "real_numbers"]
 
 # The formats by name, in the order ``format="auto"`` tries them: a Zarr store before DICOM (its folders are told by a
 # metadata file, where the DICOM sniff would open every chunk), a folder of DICOM files before one of images (an
@@ -179,24 +178,8 @@ def read_volume(path, *, format="auto", raw=None, spacing=None, series=None, fra
         format = detect_format(path, raw)
     elif not path.exists():
         raise InputError(f"no such file or folder: {path}")
-    if path.is_file() and not path.stat().st_size:       # every reader would say it its own way, or not at all
-        raise InputError(f"{path} is an empty file (0 bytes); it was cut off or not written")
-    reader = READERS[format]
-    given = {"raw": raw, "series": series, "frame": frame, "level": level, "run": run}
-    for name, value in given.items():
-        if value is not None and name not in reader.options:
-            raise InputError(f"{format} input takes no {name}", parameter=name)
-    volume = reader.function(path, progress, **{name: given[name] for name in reader.options})
-    if volume.values.ndim != 3 or min(volume.values.shape) < 1:
-        raise InputError(f"{path} does not hold a 3-D stack (shape {volume.values.shape})")
-    volume.values = real_numbers(volume.values, path)
-    if _placed(volume, path, format, orientation, reorient):
-        volume.values, volume.spacing, volume.direction, volume.meta["reoriented"] = orient.to_canonical(
-            volume.values, volume.spacing, volume.direction, volume.meta.get("orientation_from", "the header"))
-    if spacing is not None:
-        volume.spacing = check_spacing(spacing)
-        volume.meta["spacing_from"] = "given"
-    return volume
+    return read_with(READERS[format], path, format, progress, {"raw": raw, "series": series, "frame": frame,
+                     "level": level, "run": run}, orientation, reorient, spacing)
 
 
 def open_stack(path, *, format="auto", raw=None, spacing=None, series=None, frame=None, level=None,
@@ -229,38 +212,13 @@ def open_stack(path, *, format="auto", raw=None, spacing=None, series=None, fram
     if reader.open is None:
         raise InputError(f"{format} input is read whole, not slab by slab; read it with read_volume",
                          parameter="format")
-    given = {"raw": raw, "series": series, "frame": frame, "level": level, "run": run}
-    for name, value in given.items():
-        if value is not None and name not in reader.options:
-            raise InputError(f"{format} input takes no {name}", parameter=name)
-    stack = reader.open(path, **{name: given[name] for name in reader.options})
+    stack = reader.open(path, **options_for(reader, format, {"raw": raw, "series": series, "frame": frame,
+                                                              "level": level, "run": run}))
     if len(stack.shape) != 3 or min(stack.shape) < 1:
         raise InputError(f"{path} does not hold a 3-D stack (shape {stack.shape})")
-    oriented = _placed(stack, path, format, orientation, reorient)
+    oriented = placed(stack, path, format, orientation, reorient)
     stack = canonical(stack, oriented)
     if spacing is not None:
         stack.spacing = check_spacing(spacing)
         stack.meta["spacing_from"] = "given"
     return stack
-
-
-def _placed(volume, path, format, orientation, reorient):
-    """Fill in ``volume.meta`` (a :class:`Volume` or a :class:`~voxrender.io._stack.Stack`) as both readers do:
-    format, source, orientation, affine and the origin of the canonical grid; return whether to reorient it.
-    """
-    volume.meta.setdefault("format", format)
-    volume.meta.setdefault("source", str(path))
-    if orientation is not None:
-        volume.direction = orient.direction_of(orientation)
-        volume.meta["orientation_from"] = "given"
-    if volume.direction is None:
-        volume.meta.setdefault("orientation_from", "unknown: the input does not say (stored order kept)")
-        return False
-    volume.meta["orientation"] = orient.code_of(volume.direction)
-    volume.meta["affine"] = voxel_affine(volume.direction, volume.spacing, volume.meta.get("origin")).tolist()
-    if reorient and "origin" in volume.meta:          # the position of the voxel that becomes values[0, 0, 0]
-        corner = orient.canonical_corner(volume.shape, volume.direction)
-        volume.meta["origin"] = (np.asarray(volume.meta["affine"])[:3] @ [*corner, 1.0]).tolist()
-    return reorient
-
-

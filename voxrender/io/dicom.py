@@ -21,7 +21,9 @@ import numpy as np
 
 from .._shared.text import first_line
 from ..errors import InputError
-from ._dicomfile import (
+from ._shared import Reader, Volume, check_fits, check_spacing, fill_stack, identity_progress, to_grey
+from ._stack import Stack
+from .dicomfile import (
     NOT_IMAGES,
     SEGMENTATIONS,
     SUFFIXES,
@@ -32,8 +34,6 @@ from ._dicomfile import (
     is_dicom,
     is_rtstruct,
 )
-from ._shared import Reader, Volume, check_fits, check_spacing, fill_stack, identity_progress, to_grey
-from ._stack import Stack
 from .images import place_slice
 
 # The header values that group, sort and place the slices.

@@ -29,9 +29,21 @@ import numpy as np
 
 from .._shared import label_sets
 from ..errors import InputError
-from ._shared import Reader, Volume, check_fits, files_beside, listed, natural_key, some_names, volume_files
+from . import nifti, nrrd
+from ._reading import read_with
+from ._shared import (
+    Reader,
+    Volume,
+    check_fits,
+    files_beside,
+    identity_progress,
+    listed,
+    natural_key,
+    some_names,
+    volume_files,
+)
 
-SUFFIXES = (".nii", ".nii.gz", ".nrrd", ".nhdr")
+SUFFIXES = (".nii", ".nii.gz", ".nrrd", ".nhdr")     # NIfTI's and NRRD's volume files
 NAME_ENDINGS = (".nii.gz", ".seg.nrrd", ".nii", ".nrrd", ".nhdr")       # longest first: what a name drops
 # Files are read two at a time (gzip inflation and NumPy's passes let go of Python's lock), at most this many
 # ahead of the one being placed: a few masks in memory at once, never the whole folder.
@@ -154,9 +166,7 @@ def _one_volume(file):
     """The volume a folder of one volume file holds, when it is not a mask (a CT, a label map); ``None`` for a mask,
     which is a folder of one structure.
     """
-    from . import read_volume  # here, not above: voxrender.io imports this module
-
-    volume = read_volume(file)
+    volume = _read_file(file)
     try:
         _where(volume.values, file)
     except InputError:
@@ -165,12 +175,16 @@ def _one_volume(file):
     return None
 
 
+def _read_file(file):
+    """A NIfTI or NRRD file of the folder as :func:`voxrender.io.read_volume` reads it, by its format's reader."""
+    format, reader = ("nifti", nifti.READER) if file.name.lower().endswith(nifti.SUFFIXES) else ("nrrd", nrrd.READER)
+    return read_with(reader, file, format, identity_progress, {})
+
+
 def _read_mask(file):
     """One mask, in the canonical frame, and where it is on its own grid (:func:`_where`); on a worker thread."""
-    from . import read_volume  # here, not above: voxrender.io imports this module
-
     try:
-        volume = read_volume(file)
+        volume = _read_file(file)
     except InputError as exc:
         if exc.parameter != "frame":
             raise

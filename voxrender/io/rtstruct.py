@@ -39,8 +39,8 @@ import numpy as np
 
 from .._shared import label_sets
 from ..errors import InputError
-from ._dicomfile import RTSTRUCT_CLASS, BoundedFile, damaged_file_errors, fault
 from ._shared import Volume, check_fits, identity_progress
+from .dicomfile import RTSTRUCT_CLASS, BoundedFile, damaged_file_errors, fault
 
 CLOSED_TYPES = ("CLOSED_PLANAR", "CLOSEDPLANAR_XOR")
 OPEN_TYPES = ("POINT", "OPEN_PLANAR", "OPEN_NONPLANAR")

@@ -32,8 +32,8 @@ import numpy as np
 from .._shared import label_sets
 from .._shared.text import first_line
 from ..errors import InputError
-from ._dicomfile import SEG_CLASSES, BoundedFile, damaged_file_errors, fault, is_dicom
 from ._shared import Reader, Volume, check_fits, check_holds, quiet_log
+from .dicomfile import SEG_CLASSES, BoundedFile, damaged_file_errors, fault, is_dicom
 
 
 def is_seg(path):

@@ -21,7 +21,7 @@ import numpy as np
 from .. import io
 from .._shared import label_sets
 from ..errors import InputError
-from ..io._dicomfile import is_rtstruct
+from ..io.dicomfile import is_rtstruct
 from . import prep, segments, vxs
 
 
@@ -167,12 +167,6 @@ class Encoded:
         from .octree import sections
 
         vxs.save(self.segments, path, sections(self.octree()) if octree else None)
-
-    def tree_for(self, method, max_memory=None):
-        """The region octree when ``method`` traverses one (see :meth:`octree`), else ``None``."""
-        from .._render import method_record
-
-        return self.octree(max_memory) if method_record(method).octree else None
 
 
 def load_segments(path, read=None, prepare=None, progress=None):
@@ -375,7 +369,7 @@ def read_labels(source, image, read=None):
 
 def _segmentation_in(folder, image):
     """The one segmentation file a DICOM folder holds beside its slices."""
-    from ..io._dicomfile import segmentation_files
+    from ..io.dicomfile import segmentation_files
 
     same = Path(image.meta.get("source", "")).resolve() == folder.resolve()
     found = [Path(f) for f in image.meta.get("segmentations", [])] if same else segmentation_files(folder)

@@ -1,5 +1,6 @@
 """Outputs: files written atomically (``output``), the kinds of output a picture step writes (``output_kinds``,
-the ``OUTPUTS`` record) and DICOM Secondary Capture pictures (``secondary_capture``).
+the ``OUTPUTS`` record), where a picture goes and its writing (``picture_outputs``) and DICOM Secondary Capture
+pictures (``secondary_capture``).
 """
 
 from .._shared.face import face
@@ -9,6 +10,9 @@ _FACE = {
     "write_json": "output",
     "write_npy": "output",
     "OUTPUTS": "output_kinds",
+    "Outputs": "picture_outputs",
+    "write_outputs": "picture_outputs",
+    "about": "picture_outputs",
     "write_secondary_capture": "secondary_capture",
     "dicom_study": "secondary_capture",
 }

@@ -2,8 +2,8 @@
 
 As :data:`voxrender.METHODS` is for renderers, ``OUTPUTS`` is the one place an output is spelt out: the
 ending of its file, its help, how it is written and what the picture must have for it.  The rest is derived from
-it: :class:`voxrender.pictures._picture.Outputs` (a path per output) and
-:func:`voxrender.pictures._picture.write_outputs`, :class:`voxrender.batch.run.Patterns` (a pattern per output)
+it: :class:`voxrender.outputs.picture_outputs.Outputs` (a path per output) and
+:func:`voxrender.outputs.picture_outputs.write_outputs`, :class:`voxrender.batch.run.Patterns` (a pattern per output)
 and its check of the endings, and the command line's options.  Adding an output is one record.
 """
 
@@ -64,7 +64,7 @@ class OutputKind:
         What it holds, as the command line's help of its flag says it.
     write : callable
         ``write(path, result, about)`` writes it from the :class:`~voxrender.pictures._picture.Picture` ``result``;
-        ``about`` holds the fields the JSON report adds (see :func:`~voxrender.pictures._picture.write_outputs`).
+        ``about`` holds the fields the JSON report adds (see :func:`~voxrender.outputs.picture_outputs.write_outputs`).
     flag : str, optional
         Its flag on the command line, without the dashes (``"depth-out"``); ``None`` for the picture, which each
         command names in its own way.

@@ -88,7 +88,7 @@ def dicom_study(path, series=None):
     ...     print(error.parameter, "|", error.message.split(";")[0])
     dicom_study_from | /no/such/series is not DICOM, so the picture has no study to join
     """
-    from ..io._dicomfile import dicom_files, is_dicom
+    from ..io.dicomfile import dicom_files, is_dicom
 
     path = Path(path)
     if path.is_file():
@@ -124,7 +124,7 @@ def _header(path, tags=None):
     import pydicom
 
     from .._shared.text import first_line
-    from ..io._dicomfile import BoundedFile, damaged_file_errors
+    from ..io.dicomfile import BoundedFile, damaged_file_errors
 
     try:
         with BoundedFile(path) as stream:      # a damaged length would otherwise allocate what it says first
@@ -145,7 +145,7 @@ def _frames(ds):
 
 def _image_headers(files, path):
     """``[(file, header)]`` of the images among ``files``: segmentations, reports and plans beside them are not."""
-    from ..io._dicomfile import NOT_IMAGES, SEGMENTATIONS
+    from ..io.dicomfile import NOT_IMAGES, SEGMENTATIONS
 
     headers = []
     for f in files:
@@ -164,7 +164,7 @@ def _image_headers(files, path):
 
 def _choose_series(headers, path, series):
     """The headers of one series, as :func:`voxrender.io.dicom.read_dicom` chooses it, in instance-number order."""
-    from ..io._dicomfile import choose_series
+    from ..io.dicomfile import choose_series
 
     groups = {}
     for f, ds in headers:
@@ -291,7 +291,7 @@ def describe(result, about=None):
         The finished picture (its ``image`` gives the method and view; a ``projection`` attribute, when it has one,
         the projection).
     about : dict, optional
-        The picture's report fields (see :func:`voxrender.pictures._picture.about`): ``about["object"]`` holds the
+        The picture's report fields (see :func:`voxrender.outputs.picture_outputs.about`): ``about["object"]`` holds the
         object's ``threshold``, ``labels``, ``label_table`` and ``label_source``; ``about["projection"]`` a projection.
 
     Examples

@@ -8,8 +8,8 @@ from .._shared.face import face
 _FACE = {
     "picture": "_picture",
     "RenderOptions": "_picture",
-    "Outputs": "_picture",
-    "write_outputs": "_picture",
+    "label_table": "_picture",
+    "PROJECTIONS": "_picture",
     "project": "_project",
     "DisplayWindow": "display",
     "label_colours": "colours",

@@ -1,10 +1,9 @@
-"""The picture step: render, shade, time, and write the outputs, the same for every command.
+"""The picture step: render, shade and time, the same for every command.
 
 :class:`RenderOptions` holds everything that turns an encoded object and a view into a
 picture (method and its options, clip and cut, framing, shading); :func:`picture` makes it
-and :func:`write_outputs` writes it to its :class:`Outputs`: the PNG and the other outputs wanted (a field per
-record of :data:`voxrender.outputs.output_kinds.OUTPUTS`).  ``voxrender render``, ``voxrender batch`` and the demo all
-go through these two functions, so the same options give the same picture from every command.
+(:func:`voxrender.outputs.picture_outputs.write_outputs` writes it).  ``voxrender render``, ``voxrender batch`` and
+the demo all go through it, so the same options give the same picture from every command.
 """
 
 from __future__ import annotations
@@ -12,13 +11,11 @@ from __future__ import annotations
 import time
 import warnings
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from .._render import DEFAULT_METHOD, Clip, DepthImage, framing_box, method_record, render
 from ..errors import InputError
-from ..outputs.output_kinds import OUTPUTS, fields_per_output
 from ..space.view import PRESETS, View
 from . import shade
 from .shade import HEADLIGHT, SHADINGS, light_direction
@@ -115,38 +112,6 @@ class RenderOptions:
     def view(self, alpha=0.0, beta=0.0, gamma=0.0):
         """The :class:`View` of these options at the given angles (degrees)."""
         return View(alpha, beta, gamma, tuple(self.size), self.scale)
-
-
-@fields_per_output(Path)
-class Outputs:
-    """Where a picture goes: the PNG ``picture`` and a path for each other output wanted, a field per record of
-    :data:`voxrender.outputs.output_kinds.OUTPUTS` (``depth``, ``depth_png``, ``stats_json``, ``normals`` ...); ``None``
-    for an output not wanted.
-
-    >>> outputs = Outputs("skull.png", depth="skull.npy")
-    >>> list(outputs.wanted()), outputs.normals
-    (['picture', 'depth'], None)
-    """
-
-    def wanted(self):
-        """``{name: path}`` of the outputs wanted, in the order of ``OUTPUTS``."""
-        return {name: getattr(self, name) for name in OUTPUTS if getattr(self, name) is not None}
-
-    def check(self, options=None, result=None):
-        """Refuse an output the picture cannot have (see :class:`~voxrender.outputs.output_kinds.Need`): before anything
-        is rendered, when the render ``options`` tell (normals need gradient shading); before the ``result``
-        (a :class:`Picture`) is written, when it lacks what the output writes (labels need a multi-label object).
-        """
-        for name in self.wanted():
-            need = OUTPUTS[name].needs
-            if need is None:
-                continue
-            if result is not None:
-                has = getattr(result, need.field) is not None
-            else:
-                has = need.given is None or need.given(options)
-            if not has:
-                raise InputError(need.lacking, parameter=need.parameter or name)
 
 
 @dataclass
@@ -404,30 +369,3 @@ def _label_colours(segments, image, options):
     for label, (_, rgb) in table.items():
         lookup[label] = np.asarray(rgb, np.float32) / 255
     return labels, table, lookup[labels]
-
-
-def write_outputs(result, outputs, about=None):
-    """Write ``result`` to ``outputs``, and add ``write`` and ``total`` to ``result.seconds``.
-
-    ``result.seconds`` may already hold earlier stages (``load``, ``prepare``); ``total`` is the sum of
-    all stages.  ``about`` adds fields to the JSON report (e.g. the object's size).  An output the picture cannot
-    have (see :meth:`Outputs.check`) is refused before anything is written.
-    """
-    outputs.check(result=result)
-    wanted = outputs.wanted()
-    started = time.perf_counter()
-    for name, path in wanted.items():
-        if not OUTPUTS[name].report:
-            OUTPUTS[name].write(path, result, about)
-    result.seconds["write"] = time.perf_counter() - started
-    result.seconds["total"] = sum(v for k, v in result.seconds.items() if k != "total")
-    for name, path in wanted.items():
-        if OUTPUTS[name].report:              # the report holds the stages, the write stage too
-            OUTPUTS[name].write(path, result, about)
-    return result.seconds
-
-
-def about(segments):
-    """The object's part of a picture's JSON report: its grid, voxels, segments and where it came from."""
-    return {"object": {"shape": list(segments.shape), "voxels": segments.voxel_count,
-                       "segments": segments.segment_count, **segments.meta}}

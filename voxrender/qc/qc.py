@@ -227,13 +227,14 @@ def qc_sheet(study, options, views, slices=None, title=None, progress=None):
     -------
     ndarray of uint8, (H, W, 3)
     """
-    from ..pictures._picture import picture
+    from .._render import octree_for
+    from ..pictures import picture
     from .sheet import framed_views, sheet
 
     encoded = study.encoded
     surface = replace(options, projection=None, slab=None, window=None)
     chosen = framed_views(encoded.segments, surface, views)
-    tree = encoded.tree_for(surface.method)
+    tree = octree_for(surface.method, encoded)
     rows = [[(label, picture(encoded.segments, view, surface, progress, tree).rgb)
              for (label, _), view in zip(views, chosen, strict=True)]]
     if options.projection:

@@ -44,11 +44,12 @@ def render_sheet(rows, views, progress=None):
 
     A row of several views frames them with one scale, as a batch does.
     """
-    from ..pictures._picture import picture
+    from .._render import octree_for
+    from ..pictures import picture
 
     pictures, captions = [], []
     for row_label, encoded, options in rows:
-        tree = encoded.tree_for(options.method)
+        tree = octree_for(options.method, encoded)
         pictures.append([picture(encoded.segments, v, options, progress, tree).rgb
                          for v in framed_views(encoded.segments, options, views)])
         captions.append([f"{row_label}, {label}" for label, _ in views])

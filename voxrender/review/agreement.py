@@ -153,7 +153,7 @@ def _surface_of(volume, classes, box, size):
     """
     from ..object.pipeline import PrepOptions, encode_volume
     from ..object.prep import LabelSelection
-    from ..pictures._picture import RenderOptions, picture
+    from ..pictures import RenderOptions, picture
     from ..space.view import PRESETS
 
     around = tuple(slice(max(b.start - 1, 0), b.stop + 1) for b in box)

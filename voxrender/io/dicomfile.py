@@ -67,6 +67,7 @@ class BoundedFile(io.BufferedReader):
         self.size = os.fstat(self.fileno()).st_size
 
     def read(self, size=-1):
+        """At most ``size`` bytes, and never more than the file holds."""
         if size is not None and size > self.size:      # the file's size bounds it: no tell() on every small read
             size = self.size
         return super().read(size)
