@@ -8,7 +8,8 @@ from reference import exact_labels
 from voxrender._render import METHODS, Clip, render
 from voxrender._shared.mapped import is_mapped
 from voxrender.object import segments, vxs
-from voxrender.pictures.labels import label_at, label_image, label_pixels
+from voxrender.object.segments import label_at
+from voxrender.pictures.labels import label_image, label_pixels
 from voxrender.space.view import View, angles_from_vpn
 
 SIZE = (40, 44)

@@ -11,6 +11,10 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1] / "voxrender"
 ORACLES = "voxrender._render.literal"
+# The layers of docs/design.md, bottom up: a module imports from its own layer and those below.  The package's own
+# __init__ (its lazy face, which imports nothing until asked) stands above them all.
+LAYERS = [("errors",), ("_shared",), ("space",), ("io", "samples"), ("object",), ("_render",), ("pictures",),
+          ("outputs", "_snapshot"), ("qc",), ("review",), ("batch",), ("cli",)]
 
 
 def modules_of(root):
@@ -126,17 +130,38 @@ def private_modules_taken(imports):
     return wrong
 
 
-def test_voxrender_has_no_import_circle_and_keeps_its_private_names():
+def arrows_up(imports, layers=LAYERS):
+    """``module:line takes target`` for each import of a module of a higher layer; a top-level module or folder in
+    no layer is named too (a new one must be given its place)."""
+    rank = {name: k for k, names in enumerate(layers) for name in names}
+    wrong = []
+    for module, taken in imports.items():
+        parts = module.split(".")
+        if len(parts) == 1:
+            continue                                    # the package's face
+        if parts[1] not in rank:
+            wrong.append(f"{module} is in no layer")
+            continue
+        for target, _, line in taken:
+            above = target.split(".")[1] if "." in target else None
+            if above is not None and rank.get(above, -1) > rank[parts[1]]:
+                wrong.append(f"{module}:{line} takes {target}")
+    return wrong
+
+
+def test_voxrender_has_no_import_circle_no_arrow_up_and_keeps_its_private_names():
     modules = modules_of(ROOT)
     imports = imports_of(modules)
     assert circles(modules, imports) == []
+    assert arrows_up(imports) == []
     assert private_names_taken(imports) == []
     assert private_modules_taken(imports) == []
 
 
 def test_the_checks_find_what_they_look_for(tmp_path):
     """A made package with one of each fault: a circle through an import inside a function, a private name taken
-    by ``from``, one taken as an attribute, and a private module taken from another package."""
+    by ``from``, one taken as an attribute, a private module taken from another package, an arrow up and a module in
+    no layer."""
     package = tmp_path / "house"
     (package / "inner").mkdir(parents=True)
     files = {
@@ -147,6 +172,7 @@ def test_the_checks_find_what_they_look_for(tmp_path):
         "inner/__init__.py": "",
         "inner/_hidden.py": "VALUE = 1\n",
         "inner/open.py": "from ._hidden import VALUE\n",
+        "inner/up.py": "from .. import c\n",
         "d.py": "from .inner._hidden import VALUE\n",
     }
     for name, text in files.items():
@@ -157,3 +183,5 @@ def test_the_checks_find_what_they_look_for(tmp_path):
     assert private_names_taken(imports, oracles="nothing") == ["house.c:1 takes house.b._helper",
                                                                 "house.c:3 takes house.b._other"]
     assert private_modules_taken(imports) == ["house.d:1 takes house.inner._hidden"]
+    assert arrows_up(imports, layers=[("inner",), ("a", "b", "c")]) == ["house.d is in no layer",
+                                                                        "house.inner.up:1 takes house.c"]

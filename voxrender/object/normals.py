@@ -23,6 +23,7 @@ import numpy as np
 
 from .._shared.mapped import is_mapped, read_mapped
 from .._shared.threads import on_threads
+from .segments import label_at
 
 
 def _stencil(radius, smooth, derive):
@@ -556,8 +557,6 @@ def cut_normals(view, points, shape, segments=None, clip=None):
     removed = np.zeros(len(here), bool)
     by_plane = np.zeros(len(here), bool)
     if clip is not None and clip.active and segments is not None:
-        from ..pictures.labels import label_at
-
         x, y, z = there.T
         removed = ~beyond_edge & ~clip.keeps(x, y, z, view, shape)
         removed[removed] = label_at(segments, x[removed], y[removed], z[removed]) > 0

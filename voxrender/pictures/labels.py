@@ -13,39 +13,12 @@ import numpy as np
 
 from .._render.geometry import ray_box_entry
 from .._shared.label_sets import millilitres
+from ..object.segments import label_at
 
 # How far (voxels) a hit point computed from a float32 depth may lie from the cube it is on.
 _ON_CUBE = 1e-3
 # Entry depths (float64, voxels) closer than this are the same depth: a tie.
 _SAME_DEPTH = 1e-7
-
-
-def label_at(segments, x, y, z):
-    """The label of the voxels at integer ``(x, y, z)`` (arrays of one shape): 0 outside the object.
-
-    A single-object ``segments`` (no ``labels``) gives 1 inside the object.
-
-    Examples
-    --------
-    >>> from voxrender.object.segments import encode_labels
-    >>> s = encode_labels(np.array([[[0, 2, 2, 5]]]))
-    >>> label_at(s, np.arange(5), np.zeros(5, int), np.zeros(5, int)).tolist()
-    [0, 2, 2, 5, 0]
-    """
-    nz, ny, nx = segments.shape
-    x, y, z = (np.asarray(v, dtype=np.int64) for v in (x, y, z))
-    if not segments.segment_count:
-        return np.zeros(x.shape, np.uint16)
-    inside = (x >= 0) & (x < nx) & (y >= 0) & (y < ny) & (z >= 0) & (z < nz)
-    runs_row = segments.run_rows()
-    # runs sorted by row and then start: one key orders them all
-    keys = runs_row * (nx + 1) + np.asarray(segments.starts)
-    row = np.where(inside, z * ny + y, 0)
-    run = np.searchsorted(keys, row * (nx + 1) + x, side="right") - 1
-    safe = np.maximum(run, 0)
-    hit = inside & (run >= 0) & (runs_row[safe] == row) & (np.asarray(segments.ends)[safe] >= x)
-    labels = np.ones(len(keys), np.uint16) if segments.labels is None else np.asarray(segments.labels)
-    return np.where(hit, labels[safe], 0).astype(np.uint16)
 
 
 def label_image(segments, image, clip=None):
