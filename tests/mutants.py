@@ -55,7 +55,7 @@ MUTANTS = [
            "inside &= np.less_equal(values, self.hi)", "inside &= np.less(values, self.hi)"),
     Mutant("label tie goes to the larger label", "voxrender/pictures/labels.py",
            "np.minimum(best_label, label)", "np.maximum(best_label, label)"),
-    Mutant("label lookup takes the run before", "voxrender/pictures/labels.py",
+    Mutant("label lookup takes the run before", "voxrender/object/segments.py",
            'run = np.searchsorted(keys, row * (nx + 1) + x, side="right") - 1',
            'run = np.searchsorted(keys, row * (nx + 1) + x, side="left") - 1'),
     Mutant("label map resampled by rounding down", "voxrender/object/prep.py",

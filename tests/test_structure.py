@@ -185,3 +185,15 @@ def test_the_checks_find_what_they_look_for(tmp_path):
     assert private_modules_taken(imports) == ["house.d:1 takes house.inner._hidden"]
     assert arrows_up(imports, layers=[("inner",), ("a", "b", "c")]) == ["house.d is in no layer",
                                                                         "house.inner.up:1 takes house.c"]
+
+
+def test_every_mutant_of_the_mutation_gate_still_applies():
+    """Each mutant of ``make mutants`` is one exact edit: a moved or reworded line would leave the gate refusing
+    to run (or testing nothing), so the suite says so at once."""
+    from mutants import MUTANTS
+
+    def found(mutant):
+        path = ROOT.parent / mutant.path
+        return path.read_text(encoding="utf-8").count(mutant.old) if path.is_file() else 0
+
+    assert [(m.name, m.path, found(m)) for m in MUTANTS if found(m) != 1] == []
