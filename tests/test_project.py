@@ -175,13 +175,13 @@ def test_bad_input(volume, call, parameter):
 def test_long_volumes_along_any_axis(monkeypatch):
     """Rays along z run through 70 layers, in two runs of faces on two threads, the same as in one; rays along x
     read their layers in blocks (x is next to x in memory)."""
-    import voxrender.pictures._project as module
+    import voxrender.pictures._project_rays as module
 
     values = np.random.default_rng(3).integers(-500, 500, size=(70, 6, 5)).astype(np.int16)
     view = View(8, -6, 30, size=(10, 10), scale=1.0)
-    monkeypatch.setattr(module, "_THREADS", 2)
+    monkeypatch.setattr(module, "THREADS", 2)
     two = check(values, view)
-    monkeypatch.setattr(module, "_THREADS", 1)
+    monkeypatch.setattr(module, "THREADS", 1)
     np.testing.assert_array_equal(project(values, view), two[0])
     check(np.ascontiguousarray(values.transpose(1, 2, 0)), View(90, 80, 10, size=(10, 10), scale=1.0))
 
@@ -233,7 +233,7 @@ def every_face(monkeypatch, values, view, mode, **limits):
 def test_skipping_changes_nothing(monkeypatch, seed):
     """The maximum and minimum with the blocks skipped are those of every face, bit for bit: random views,
     clip limits, cut depth, slab, another grid, NaN voxels, and the slice buffers or the voxels read straight."""
-    import voxrender.pictures._project as module
+    import voxrender.pictures._project_skip as module
 
     rng = np.random.default_rng(seed)
     values = skull(rng)
@@ -244,8 +244,8 @@ def test_skipping_changes_nothing(monkeypatch, seed):
     view = View(*rng.uniform(-180, 180, 3), size=(40, 44), scale=rng.uniform(0.8, 1.3))
     limits = [{}, {"clip": Clip(x=(3, 38), y=(2, None), cut_depth=-6.0)}, {"slab": (-9.0, 12.0)},
               {"shape": (40, 36, 22), "step": (2.0, 1.0, 1.0)}][seed % 4]
-    monkeypatch.setattr(module, "_BLOCK_FACES", 4)           # several blocks across these small volumes
-    monkeypatch.setattr(module, "_PAIRS_PER_PIXEL", [(0, 0), (10 ** 9, 10 ** 9), (20, 20)][seed % 3])
+    monkeypatch.setattr(module, "BLOCK_FACES", 4)           # several blocks across these small volumes
+    monkeypatch.setattr(module, "PAIRS_PER_PIXEL", [(0, 0), (10 ** 9, 10 ** 9), (20, 20)][seed % 3])
     for mode in ("mip", "minip"):
         np.testing.assert_array_equal(project(values, view, mode, **limits),
                                       every_face(monkeypatch, values, view, mode, **limits))
@@ -253,22 +253,23 @@ def test_skipping_changes_nothing(monkeypatch, seed):
 
 def test_block_bounds_are_bounds():
     """Each ray's bound of a block is above (for the minimum, below) every voxel it meets at the block's faces."""
-    import voxrender.pictures._project as module
+    import voxrender.pictures._project_rays as rays_module
+    import voxrender.pictures._project_skip as module
 
     rng = np.random.default_rng(5)
     values = skull(rng)
     for angles in ((30, 10, 0), (-115.6, 50.4, 0), (70, -20, 33)):
         view = View(*angles, size=(40, 44), scale=1.0)
-        rays = module._Rays(values.shape, view, values.shape, np.ones(3), None, None)
-        layers = module._Layers(values, rays)
+        rays = rays_module.Rays(values.shape, view, values.shape, np.ones(3), None, None)
+        layers = rays_module.Layers(values, rays)
         faces = range(int(layers.first.min()) + 1, int(layers.last.max()) + 1)
         blocks = [range(max(j - 1, faces.start), min(j + 5, faces.stop)) for j in range(faces.start, faces.stop, 5)]
-        paths = module._Paths(values, rays, layers)
+        paths = module.Paths(values, rays, layers)
         for mode, fold in (("mip", np.maximum), ("minip", np.minimum)):
-            bounds = module._block_bounds(values, rays, layers, mode, blocks)
+            bounds = module.block_bounds(values, rays, layers, mode, blocks)
             for k, block in enumerate(blocks):
-                met = np.full(rays.count, module._ignored(mode, values.dtype))
-                module._fold_pairs(paths, mode, met, block, np.arange(rays.count))
+                met = np.full(rays.count, rays_module.ignored(mode, values.dtype))
+                module.fold_pairs(paths, mode, met, block, np.arange(rays.count))
                 assert np.all(fold(bounds[k], met) == bounds[k])
             # and not a loose one: below the shell's values where the ray meets only air or the noise inside it
             assert mode == "minip" or np.mean(bounds < 1000) > 0.3
