@@ -197,3 +197,18 @@ def test_every_mutant_of_the_mutation_gate_still_applies():
         return path.read_text(encoding="utf-8").count(mutant.old) if path.is_file() else 0
 
     assert [(m.name, m.path, found(m)) for m in MUTANTS if found(m) != 1] == []
+
+
+def test_a_projection_is_a_kind_not_a_flag():
+    """Nothing but the picture step (which holds ``RenderOptions.projection`` and hands it to ``project``) asks
+    which projection a picture is: every other module asks the record, ``options.drawn`` (grey values? depth?
+    labels?), so a new projection is one record in ``pictures/kinds.py``."""
+    owners = {"voxrender.pictures._picture"}
+    asking = []
+    for module, path in modules_of(ROOT).items():
+        if module in owners:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Attribute) and node.attr == "projection" and isinstance(node.ctx, ast.Load):
+                asking.append(f"{module}:{node.lineno}")
+    assert asking == []

@@ -199,7 +199,7 @@ class Item:
     @property
     def needs_grey(self):
         """Whether its pictures draw grey values (projections), which the cache then keeps beside the object."""
-        return self.options.projection is not None
+        return self.options.drawn.grey_values
 
     def sheet_views(self):
         """The views its QC sheet shows: all of them, or four spread over a turntable's frames."""

@@ -293,7 +293,7 @@ def output_flags(command):
 
 def check_window(render_options, slice_options=None):
     """A window shows grey values: refused when nothing drawn has any (surfaces alone)."""
-    if render_options.window is not None and not render_options.projection and slice_options is None:
+    if render_options.window is not None and not render_options.drawn.grey_values and slice_options is None:
         raise InputError("a window shows grey values, and a surface picture draws none; give a projection (mip, "
                          "minip or mean) or slices too, or drop it", parameter="window")
 

@@ -98,7 +98,7 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
     slice_options = slice_options_of(options)
     render_options = render_options_of(options)
     check_window(render_options, slice_options)
-    if per_label and options["projection"]:
+    if per_label and not render_options.drawn.labels:
         raise InputError("a projection draws grey values, not labels one by one; drop --per-label, or the projection",
                          parameter="per_label")
     if slice_options is not None and not make_sheet:

@@ -57,7 +57,7 @@ def render_command(input_path, output_path, **options):
     if note:
         click.echo(f"note: {note}", err=True)
     study = None
-    if render_options.projection:
+    if render_options.drawn.grey_values:
         from ..qc.study import load_study
 
         study = load_study(input_path, read, prep_options_of(options), progress)

@@ -203,10 +203,10 @@ def sheet_command(inputs, output_path, views, view_list, angles, methods, per_la
         raise InputError("give --methods or --per-label, not both: a sheet has one kind of row")
     if (methods or per_label) and len(inputs) > 1:
         raise InputError(f"give one input for {'--methods' if methods else '--per-label'}, or several without it")
-    if reference is not None and slice_options is None and not render_options.projection:
+    if reference is not None and slice_options is None and not render_options.drawn.grey_values:
         raise InputError("a reference's table goes on a QC sheet: give --slices or --projection too",
                          parameter="reference")
-    if slice_options is not None or render_options.projection:
+    if slice_options is not None or render_options.drawn.grey_values:
         if methods or per_label or len(inputs) > 1:
             raise InputError("a QC sheet (--slices, --projection) is of one study: give one input, without "
                              "--methods or --per-label; 'voxrender batch --sheet' makes one per study")
@@ -227,8 +227,8 @@ def sheet_command(inputs, output_path, views, view_list, angles, methods, per_la
         from ..outputs.secondary_capture import selection_words
 
         shows = [f"QC sheet of {', '.join(v.label for v in chosen)}"]
-        if render_options.projection:
-            shows.append(render_options.projection)
+        if render_options.drawn.grey_values:
+            shows.append(render_options.drawn.name)
         if slice_options:
             shows.append(f"slices {', '.join(slice_options.planes)}")
         shows += selection_words(study.encoded.segments.meta)

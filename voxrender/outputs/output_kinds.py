@@ -42,11 +42,11 @@ class Need:
 
 GRADIENT_NORMALS = Need("normals", "normals are kept with gradient shading only; drop the normals outputs or shade "
                         "by gradient", "shading",
-                        lambda options: options.shading == "gradient" and not options.projection)
+                        lambda options: options.shading == "gradient" and options.drawn.depth)
 DEPTH = Need("depth", "a projection has no depth, its pixels hold grey values; drop the depth outputs, or write the "
-             "values", "projection", lambda options: not options.projection)
+             "values", "projection", lambda options: options.drawn.depth)
 VALUES = Need("values", "only a projection has grey values to write; choose a projection (mip, minip or mean)",
-              "projection", lambda options: bool(options.projection))
+              "projection", lambda options: options.drawn.grey_values)
 LABELS = Need("labels", "the picture has no label image to write: it is of a surface of labels, and a projection "
               "has none; render the labels of a label map, without a projection")
 LABEL_ROWS = Need("label_rows", "the object has no labels to write; render the labels of a label map")

@@ -18,9 +18,8 @@ from .._render import DEFAULT_METHOD, Clip, DepthImage, framing_box, method_reco
 from ..errors import InputError
 from ..space.view import PRESETS, View
 from . import shade
+from .kinds import PROJECTIONS, SURFACE
 from .shade import HEADLIGHT, SHADINGS, light_direction
-
-PROJECTIONS = ("mip", "minip", "mean")      # _project's; here so that the options check without importing it
 
 # The views that see a slab thin along an axis face-on.
 FACE_ON = {"x": ("left", "right"), "y": ("anterior", "posterior"), "z": ("inferior", "superior")}
@@ -92,6 +91,11 @@ class RenderOptions:
     window: object = None
     slab: float | None = None
 
+    @property
+    def drawn(self):
+        """What the picture draws (:mod:`voxrender.pictures.kinds`): the surface, or the projection's record."""
+        return PROJECTIONS.get(self.projection, SURFACE)
+
     def __post_init__(self):
         method_record(self.method, self.method_options)
         if self.projection is not None and self.projection not in PROJECTIONS:
@@ -136,7 +140,7 @@ class Picture:
     @property
     def depth(self):
         """The depth image; ``None`` for a projection, which has none."""
-        return None if self.projection else self.image.depth
+        return self.image.depth if PROJECTIONS.get(self.projection, SURFACE).depth else None
 
     def _repr_png_(self):
         """The picture as PNG bytes: a notebook shows it."""
@@ -186,7 +190,7 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
     ((16, 16, 3), 'ftb')
     """
     options = options or RenderOptions()
-    if options.projection:
+    if options.drawn.grey_values:
         return _projection(segments, view, options, study, progress)
     image = render(segments, view, options.method, progress, options.supersample, options.clip, options.fit,
                    tree, **options.method_options)

@@ -20,8 +20,8 @@ from ..errors import InputError
 from . import _project_skip
 from ._project_march import fold_all_faces
 from ._project_rays import ON_FACE, RAYS_PER_CHUNK, Layers, Rays, ignored
+from .kinds import PROJECTIONS
 
-PROJECTIONS = ("mip", "minip", "mean")
 _SKIP = True              # skip the blocks of faces that cannot change a ray's maximum (minimum); False: every face
 
 

@@ -237,8 +237,8 @@ def qc_sheet(study, options, views, slices=None, title=None, progress=None):
     tree = octree_for(surface.method, encoded)
     rows = [[(label, picture(encoded.segments, view, surface, progress, tree).rgb)
              for (label, _), view in zip(views, chosen, strict=True)]]
-    if options.projection:
-        rows.append([(f"{options.projection}, {label}", picture(encoded.segments, view, options, progress,
+    if options.drawn.grey_values:
+        rows.append([(f"{options.drawn.name}, {label}", picture(encoded.segments, view, options, progress,
                                                                  study=study).rgb)
                      for (label, _), view in zip(views, chosen, strict=True)])
     if slices is not None:

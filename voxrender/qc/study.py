@@ -97,15 +97,11 @@ class Study:
         bone a head's MIP shows is its top one per cent.
         """
         from ..pictures.display import auto_window
+        from ..pictures.kinds import PROJECTIONS
 
         kept = self.__dict__.setdefault("_windows", {})
         if projection not in kept:
-            values = self.volume.values
-            if projection == "mean":
-                plane = np.add.reduce(values, axis=1, dtype=np.float64) / values.shape[1]
-            else:               # fmax and fmin pass over NaN voxels, and reduce without a copy of the volume
-                plane = (np.fmin if projection == "minip" else np.fmax).reduce(values, axis=1)
-            kept[projection] = auto_window(plane)
+            kept[projection] = auto_window(PROJECTIONS[projection].plane(self.volume.values))
         return kept[projection]
 
     def label_table(self, given=None):
