@@ -228,3 +228,18 @@ def test_the_source_names_are_copied_without_warnings(ct, tmp_path):
         warnings.simplefilter("error")
         write_secondary_capture(tmp_path / "p.dcm", np.zeros((4, 4, 3), np.uint8), study, "test")
     assert pydicom.dcmread(tmp_path / "p.dcm").PatientName == "Eve"
+
+
+def test_the_outputs_are_written_all_or_none(tmp_path):
+    """A composite picture (slices, a sheet) goes through OUTPUTS as a rendered one does; when one output fails
+    (here the DICOM, which has no study to join), the PNG written before it is taken away."""
+    from voxrender.outputs import Composite
+
+    rgb = np.zeros((4, 6, 3), np.uint8)
+    with pytest.raises(InputError, match="joins the study"):
+        write_outputs(Composite(rgb, "slices axial"), Outputs(tmp_path / "p.png", dicom=tmp_path / "p.dcm"), {})
+    assert list(tmp_path.iterdir()) == []
+    write_outputs(Composite(rgb, "slices axial"), Outputs(tmp_path / "p.png"))
+    assert [p.name for p in tmp_path.iterdir()] == ["p.png"]
+    with pytest.raises(InputError, match="no depth"):                 # what a composite lacks is refused first
+        write_outputs(Composite(rgb, "slices axial"), Outputs(tmp_path / "q.png", depth=tmp_path / "q.npy"))

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import click
 
-from .. import __version__, io
+from .. import io
 from .._render import DEFAULT_METHOD, METHODS, Clip
 from .._render.raycast import CONNECTIVITIES
 from .._shared.files import check_writable
@@ -17,7 +17,6 @@ from ..batch import parse
 from ..errors import InputError
 from ..object import prep
 from ..object.pipeline import AUTO, PrepOptions, ReadOptions, is_segments_file
-from ..outputs import output
 from ..outputs.output_kinds import OUTPUTS
 from ..pictures import PROJECTIONS, RenderOptions, colours
 from ..pictures.shade import HEADLIGHT, SHADINGS
@@ -314,22 +313,6 @@ def check_output_paths(paths):
                              f"{flag(name)}); give each its own file", parameter=name)   # the picture comes first
         seen[Path(path).resolve()] = name
         check_writable(path)
-
-
-def write_with_dicom(path, rgb, dicom, joins, what):
-    """Write ``rgb`` to the PNG ``path`` and, when ``dicom`` is given, as a Secondary Capture of the study in
-    ``joins``: both or neither.
-    """
-    if dicom is not None:
-        from ..outputs.secondary_capture import write_secondary_capture
-
-        write_secondary_capture(dicom, rgb, joins["dicom_study"], f"voxrender {__version__}: {what}")
-    try:
-        output.write_png(path, rgb)
-    except BaseException:
-        if dicom is not None:
-            Path(dicom).unlink(missing_ok=True)
-        raise
 
 
 def check_study_from(options, wanted):

@@ -13,7 +13,7 @@ from ..batch import run as batch
 from ..errors import InputError
 from ..object import prep
 from ..object.pipeline import Encoded, PrepOptions, load_segments
-from ..outputs import output
+from ..outputs import Composite, Outputs, output, write_outputs
 from ..pictures import colours, label_table
 from ..qc.sheet import render_sheet, sheet
 from ..space.view import PRESETS
@@ -34,7 +34,6 @@ from ._options import (
     slice_flags,
     slice_options_of,
     window_flag,
-    write_with_dicom,
 )
 
 
@@ -90,9 +89,9 @@ def slices_command(input_path, output_path, size, colour_table, legend, dicom, r
     picture_rgb = sheet([[rgb for _, rgb in row] for row in rows], [[caption for caption, _ in row] for row in rows])
     if metrics is not None:
         picture_rgb = _with_metrics(picture_rgb, metrics)
-    write_with_dicom(output_path, picture_rgb, dicom, joins,
-                      f"slices {', '.join(slice_options.planes)}"
-                      + (f" with the labels of {options['labels_from'].name}" if options["labels_from"] else ""))
+    shows = f"slices {', '.join(slice_options.planes)}" + (
+        f" with the labels of {options['labels_from'].name}" if options["labels_from"] else "")
+    write_outputs(Composite(picture_rgb, shows), Outputs(output_path, dicom=dicom), joins)
     click.echo(f"{output_path}: {len(rows)} row{'s' * (len(rows) > 1)} of {', '.join(slice_options.planes)}")
 
 
@@ -232,7 +231,7 @@ def sheet_command(inputs, output_path, views, view_list, angles, methods, per_la
         if slice_options:
             shows.append(f"slices {', '.join(slice_options.planes)}")
         shows += selection_words(study.encoded.segments.meta)
-        write_with_dicom(output_path, rgb, dicom, joins, ", ".join(shows))
+        write_outputs(Composite(rgb, ", ".join(shows)), Outputs(output_path, dicom=dicom), joins)
         click.echo(f"{output_path}: the QC sheet of {inputs[0]}")
         return
     if dicom is not None:

@@ -11,6 +11,7 @@ _FACE = {
     "write_npy": "output",
     "OUTPUTS": "output_kinds",
     "Outputs": "picture_outputs",
+    "Composite": "picture_outputs",
     "write_outputs": "picture_outputs",
     "about": "picture_outputs",
     "write_secondary_capture": "secondary_capture",

@@ -319,6 +319,8 @@ def describe(result, about=None):
         parts.append(f"view alpha {view.alpha:g} beta {view.beta:g} gamma {view.gamma:g}")
     if projection:
         parts.append(f"projection {projection}")
+    if getattr(result, "shows", None):                    # a composite picture says what it shows itself
+        parts.append(result.shows)
     return f"voxrender {__version__}: " + ", ".join(parts + selection_words(meta))
 
 
