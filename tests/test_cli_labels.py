@@ -305,10 +305,10 @@ def test_several_presets_make_one_object_of_labelled_tissues(tmp_path):
 
 def test_classify_takes_the_last_window_that_holds_a_value():
     from voxrender.io import Volume
-    from voxrender.object.prep import Window, classify
+    from voxrender.object.prep import Interval, classify
 
     values = np.array([[[-1000, -200, 100, 400, 2000]]], np.int16)
-    labels, _ = classify(Volume(values, (1, 1, 1)), [Window(-300), Window(300, 1000)])
+    labels, _ = classify(Volume(values, (1, 1, 1)), [Interval(-300), Interval(300, 1000)])
     assert labels.tolist() == [[[0, 1, 1, 2, 1]]]
 
 

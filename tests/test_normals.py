@@ -10,7 +10,7 @@ from scipy.special import erf
 from voxrender._render import render
 from voxrender._shared.mapped import is_mapped, read_mapped
 from voxrender.object import normals, segments, vxs
-from voxrender.pictures.shade import surface_normals as depth_gradient_normals
+from voxrender.pictures.shade import depth_normals as depth_gradient_normals
 from voxrender.space.view import View
 
 RADIUS = 50

@@ -105,17 +105,17 @@ def test_a_value_equal_to_the_threshold_stays_in_the_object_through_resampling()
 
 
 def test_a_window_keeps_both_bounds_through_resampling():
-    from voxrender.object.prep import Window
+    from voxrender.object.prep import Interval
 
     values = np.zeros((4, 3, 3), np.int16)
     values[:, 1, 1] = [100, 200, 300, 400]
     for resample in (False, True):
-        mask, info = prep.binarize(Volume(values, (1, 1, 2 if resample else 1)), Window(200, 300), resample=resample)
+        mask, info = prep.binarize(Volume(values, (1, 1, 2 if resample else 1)), Interval(200, 300), resample=resample)
         column = mask[:, 1, 1]
         assert column.tolist() == ([False, True, True, False] if not resample else
                                    [False, False, True, True, True, False, False])
         assert info["threshold"] == "200:300"
-    below = prep.binarize(Volume(values, (1, 1, 1)), Window(None, 100))[0]
+    below = prep.binarize(Volume(values, (1, 1, 1)), Interval(None, 100))[0]
     assert below[:, 1, 1].tolist() == [True, False, False, False]
 
 

@@ -9,7 +9,7 @@ def test_gradient_of_a_tilted_plane():
     # Z' = 0.5 X' (voxel units) at scale 2: the normal is (0.5, 0, -1) normalised.
     x = (np.arange(20) + 0.5 - 10) / 2
     depth = np.tile(0.5 * x, (10, 1))
-    normals = shade.surface_normals(depth, scale=2.0)
+    normals = shade.depth_normals(depth, scale=2.0)
     assert np.allclose(normals[5, 10], np.array([0.5, 0, -1]) / np.sqrt(1.25))
     assert np.allclose(normals[5, 0], normals[5, 10])  # one-sided at the picture's edge
 

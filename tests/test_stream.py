@@ -58,13 +58,13 @@ def test_the_cases_say_how_the_stack_is_read(tmp_path):
 
 @pytest.mark.parametrize("read, prepare", [
     (ReadOptions(), PrepOptions()),                                                     # Otsu's threshold
-    (ReadOptions(orientation="LPI"), PrepOptions(threshold=prep.Window(800, 1500))),
+    (ReadOptions(orientation="LPI"), PrepOptions(threshold=prep.Interval(800, 1500))),
     (ReadOptions(spacing=(0.7, 0.9, 1.3), orientation="RAI"),
      PrepOptions(threshold=1000, crop=(slice(2, 12), slice(1, 10), slice(3, 14)))),
     (ReadOptions(spacing=(1.0, 1.0, 2.0)), PrepOptions(threshold=1000, bin=2)),
     (ReadOptions(), PrepOptions(threshold=900, bin=3, crop=(slice(1, 12), slice(None), slice(2, 14)))),
     (ReadOptions(spacing=(1, 1, 1.4)), PrepOptions(threshold=None, tissues=(
-        ("soft", prep.Window(600, 1200), (1, 0, 0)), ("bone", prep.Window(1200), (0, 1, 0))))),
+        ("soft", prep.Interval(600, 1200), (1, 0, 0)), ("bone", prep.Interval(1200), (0, 1, 0))))),
     (ReadOptions(), PrepOptions(threshold=1000, voxel=0.6)),                            # finer than the input
     (ReadOptions(spacing=(1.0, 1.0, 2.0)), PrepOptions(bin=2)),                         # Otsu of binned values
     (ReadOptions(spacing=(1, 1, 1.000001)), PrepOptions(threshold=1000)),               # all but cubic

@@ -80,9 +80,9 @@ def test_otsu_is_unchanged_on_finite_values():
 
 def test_windows_leave_out_nan_and_inf():
     values = np.array([[[np.nan, np.inf, -np.inf, 500.0, 0.0]]])
-    for threshold in (prep.Window(300), prep.Window(None, 1000), 300.0):
+    for threshold in (prep.Interval(300), prep.Interval(None, 1000), 300.0):
         mask, _ = prep.binarize(Volume(values), threshold)
-        assert mask.tolist() == [[[False, False, False, True, threshold == prep.Window(None, 1000)]]]
+        assert mask.tolist() == [[[False, False, False, True, threshold == prep.Interval(None, 1000)]]]
 
 
 def test_nan_voxels_render(tmp_path, nan_nifti):

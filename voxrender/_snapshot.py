@@ -25,8 +25,8 @@ def snapshot(source, *, threshold=None, view="anterior", labels=None, spacing=No
         What ``voxrender render`` reads (a folder of slices or DICOM files, a volume file, a ``.vxs``), or the
         grey values ``[z, y, x]`` themselves (a bool array is the object).  An array or ``Volume`` is taken in its
         stored order, as the canonical patient frame (x toward the patient's left, y toward the back, z up).
-    threshold : float, Window or callable, optional
-        The grey values of the object: ``value >= threshold``, a :class:`~voxrender.object.prep.Window`, or a function
+    threshold : float, Interval or callable, optional
+        The grey values of the object: ``value >= threshold``, a :class:`~voxrender.object.prep.Interval`, or a function
         of the values (default: Otsu's threshold, :func:`~voxrender.object.prep.otsu_threshold`).  With ``labels`` it
         applies only when given.
     view : str, (alpha, beta, gamma) or View

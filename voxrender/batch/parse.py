@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..io import RawLayout
-from ..object.prep import Window, otsu_threshold
+from ..object.prep import Interval, otsu_threshold
 
 
 def size(text):
@@ -120,7 +120,7 @@ def threshold(text):
     :func:`voxrender.object.prep.otsu_threshold`.
 
     >>> threshold("-300"), threshold("otsu").__name__, threshold("300:")
-    (-300.0, 'otsu_threshold', Window(lo=300.0, hi=None))
+    (-300.0, 'otsu_threshold', Interval(lo=300.0, hi=None))
     """
     if str(text).strip().lower() == "otsu":
         return otsu_threshold
@@ -131,7 +131,7 @@ def threshold(text):
         except ValueError:
             raise InputError(f"{text!r} must be a window lo:hi of numbers (in stored units, HU for CT), "
                              "either side may be left out", parameter="threshold") from None
-        return Window(*bounds)
+        return Interval(*bounds)
     try:
         value = float(text)
     except (TypeError, ValueError):

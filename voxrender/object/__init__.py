@@ -12,7 +12,7 @@ _FACE = {
     "save": "vxs",
     "load": "vxs",
     "binarize": "prep",
-    "Window": "prep",
+    "Interval": "prep",
     "LabelSelection": "prep",
     "otsu_threshold": "prep",
     "load_segments": "pipeline",

@@ -54,8 +54,8 @@ class PrepOptions:
     """How to select the object (see :func:`voxrender.object.prep.binarize` and
     :func:`voxrender.object.prep.label_map`).
 
-    ``threshold`` (a number, a :class:`~voxrender.object.prep.Window` or a function of the values) selects grey values;
-    ``labels`` selects labels of a label map: the input itself, or a map paired with it
+    ``threshold`` (a number, a :class:`~voxrender.object.prep.Interval` or a function of the values) selects grey
+    values; ``labels`` selects labels of a label map: the input itself, or a map paired with it
     (``labels.source``), and then an explicit ``threshold`` also applies to the input's grey values.
     ``tissues`` makes one object of several value windows, each a label with its name and colour
     (:func:`voxrender.object.prep.classify`).  Left ``"auto"``, the threshold is what :attr:`selecting` says: Otsu's
@@ -66,13 +66,13 @@ class PrepOptions:
     (True, None)
     """
 
-    threshold: float | prep.Window | Callable | str | None = AUTO
+    threshold: float | prep.Interval | Callable | str | None = AUTO
     crop: tuple | None = None
     voxel: float | None = None
     resample: bool = True
     min_object: int = 0
     labels: prep.LabelSelection | None = None
-    tissues: tuple = ()        # (name, Window, (r, g, b)) each: several tissues of a CT, each a label
+    tissues: tuple = ()        # (name, Interval, (r, g, b)) each: several tissues of a CT, each a label
     bin: int = 1               # mean binning of bin x bin x bin voxels, after the crop: a preview of a huge stack
     measure_labels: bool = False   # also each label's pieces and whether it touches the edge (a batch's flags)
 

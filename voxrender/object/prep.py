@@ -17,10 +17,11 @@ from .slabs import blocks, kept_parts, kept_range, resample_slices, resampled_sh
 
 
 @dataclass(frozen=True)
-class Window:
-    """A value window: the object is ``lo <= value <= hi``; ``None`` leaves a side open.
+class Interval:
+    """An interval of values (a CT tissue's HU window): the object is ``lo <= value <= hi``; ``None`` leaves a side
+    open. What a picture's grey values are shown through is :class:`voxrender.pictures.display.DisplayWindow`.
 
-    >>> Window(-100, 300).select(np.array([-200, 0, 300, 400])).tolist()
+    >>> Interval(-100, 300).select(np.array([-200, 0, 300, 400])).tolist()
     [False, True, True, False]
     """
 
@@ -56,7 +57,7 @@ class Window:
     def words(self):
         """The window in words, for messages.
 
-        >>> Window(300).words(), Window(-100, 300).words(), Window(None, 0).words()
+        >>> Interval(300).words(), Interval(-100, 300).words(), Interval(None, 0).words()
         ('300 and above', '-100 to 300', '0 and below')
         """
         if self.hi is None:
@@ -274,9 +275,9 @@ def binarize(volume, threshold=otsu_threshold, *, crop=None, voxel=None, resampl
     Parameters
     ----------
     volume : Volume
-    threshold : float, Window or callable
+    threshold : float, Interval or callable
         Voxels with value ``>= threshold`` (stored units) belong to the object, or those inside a
-        :class:`Window`; a callable is given the (cropped) values and returns the threshold, like the
+        :class:`Interval`; a callable is given the (cropped) values and returns the threshold, like the
         default :func:`otsu_threshold` (which also leaves out a CT's padding, :func:`padding_value`).
         NaN and inf voxels never belong to the object.
     crop : tuple of 3 slices, optional
@@ -310,7 +311,7 @@ def binarize(volume, threshold=otsu_threshold, *, crop=None, voxel=None, resampl
             raise InputError(f"{volume.meta.get('source', 'the volume')}: {exc.message}", exc.parameter) from None
     elif callable(threshold):
         threshold = threshold(values)
-    window = threshold if isinstance(threshold, Window) else Window(float(threshold))
+    window = threshold if isinstance(threshold, Interval) else Interval(float(threshold))
     mask, voxel, spacing = _windowed(values, volume.spacing, [window], voxel, resample, progress)
     mask = mask.view(bool)                                  # one window: 0 and 1
     if min_object > 1:
@@ -318,9 +319,9 @@ def binarize(volume, threshold=otsu_threshold, *, crop=None, voxel=None, resampl
 
         mask = remove_small_objects(mask, max_size=int(min_object) - 1, connectivity=3)
     if not mask.any():
-        raise _nothing_selected(volume, values, f"the window {window.words()}" if isinstance(threshold, Window)
+        raise _nothing_selected(volume, values, f"the window {window.words()}" if isinstance(threshold, Interval)
                                 else f"the threshold {window.lo:g}", "threshold")
-    return mask, {"threshold": str(threshold) if isinstance(threshold, Window) else window.lo, "voxel": voxel,
+    return mask, {"threshold": str(threshold) if isinstance(threshold, Interval) else window.lo, "voxel": voxel,
                   "spacing": spacing}
 
 
@@ -338,7 +339,7 @@ def classify(volume, windows, *, crop=None, voxel=None, resample=True, progress=
     Examples
     --------
     >>> from voxrender.io import Volume
-    >>> labels, info = classify(Volume(np.array([[[-1000, 0, 500]]]), (1, 1, 1)), [Window(-300), Window(300)])
+    >>> labels, info = classify(Volume(np.array([[[-1000, 0, 500]]]), (1, 1, 1)), [Interval(-300), Interval(300)])
     >>> labels.tolist(), info["threshold"]
     ([[[0, 1, 2]]], '-300:, 300:')
     """

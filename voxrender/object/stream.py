@@ -61,7 +61,7 @@ class Plan:
     token: str              # this encode's: a worker that stays (Dask) opens the stack again for the next one
     region: tuple           # (z, y, x) slices of the canonical stack: the crop
     bin: int
-    windows: tuple          # prep.Window each: the object (one) or its tissues, numbered 1, 2, ...
+    windows: tuple          # prep.Interval each: the object (one) or its tissues, numbered 1, 2, ...
     grid: tuple             # the object's grid (nz, ny, nx)
     voxel: float
     binned_spacing: tuple   # of the cropped, binned input
@@ -202,8 +202,8 @@ def _plan(stack, source, read, prepare, slab_voxels, token, spool=None):
         elif callable(found):
             raise InputError("a threshold found by a function needs the whole volume; give a number or a window "
                              "to stream the stack", parameter="threshold")
-        windows = (found if isinstance(found, prep.Window) else prep.Window(float(found)),)
-        threshold = str(found) if isinstance(found, prep.Window) else windows[0].lo
+        windows = (found if isinstance(found, prep.Interval) else prep.Interval(float(found)),)
+        threshold = str(found) if isinstance(found, prep.Interval) else windows[0].lo
     slab = _slab_slices(stack, cropped, grid, bin, slab_voxels)
     step = grid_step(spacing, voxel, prepare.resample)
     plan = Plan(source, read, token, region, bin, windows, grid, voxel, spacing, resampled,

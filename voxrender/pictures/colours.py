@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..object.prep import Window
+from ..object.prep import Interval
 
 # A few colour names a user may type (and the tissue colours of the presets).
 NAMED = {
@@ -250,25 +250,25 @@ def label_colours(labels, stored=None, given=None):
 class Preset:
     """A CT tissue: a HU window, a colour, and where the values come from."""
 
-    window: Window
+    window: Interval
     colour: tuple
     source: str
 
 
 PRESETS = {
-    "bone": Preset(Window(300, None), NAMED["bone"],
+    "bone": Preset(Interval(300, None), NAMED["bone"],
                    "cancellous bone from +300 HU, cortical +500 to +1900 (Hounsfield scale tables); the project's "
                    "head data: bone at about 300 HU"),
-    "skin": Preset(Window(-300, None), NAMED["skin"],
+    "skin": Preset(Interval(-300, None), NAMED["skin"],
                    "the air/tissue boundary: air is -1000 HU, fat -120 to -90, so -300 is safely between them "
                    "(the project's head data: skin at about -300 HU)"),
-    "soft-tissue": Preset(Window(20, 80), NAMED["muscle"],
+    "soft-tissue": Preset(Interval(20, 80), NAMED["muscle"],
                           "muscle +35 to +55, organs, brain and blood +20 to +60 HU; leaves out fat (-120 to -90), "
                           "water (0) and bone (from +300)"),
-    "contrast-vessels": Preset(Window(150, 500), NAMED["artery"],
+    "contrast-vessels": Preset(Interval(150, 500), NAMED["artery"],
                                "iodine-enhanced vessel lumen in CT angiography, about +200 to +500 HU, above "
                                "unenhanced blood (+13 to +50); overlaps cancellous bone, so crop or clip bone away"),
-    "lung": Preset(Window(-950, -500), NAMED["lung"],
+    "lung": Preset(Interval(-950, -500), NAMED["lung"],
                    "aerated lung parenchyma, about -900 to -500 HU (-700 to -600 typical); -950 is the usual "
                    "emphysema threshold and keeps out the air around the body (-1000)"),
 }

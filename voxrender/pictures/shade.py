@@ -93,13 +93,13 @@ def _smooth_depth(depth, sigma):
     return np.where(covered, total / np.maximum(weight, 1e-12), np.inf)
 
 
-def surface_normals(depth, scale=1.0, smoothing=0.0):
+def depth_normals(depth, scale=1.0, smoothing=0.0):
     """Unit normals ``(H, W, 3)`` in image space (pointing at the viewer, ``-Z'``) from the depth gradient.
 
     ``scale`` is pixels per voxel, so slopes come out in voxel units;
     ``smoothing`` is the blur in voxels applied to the depth first.
 
-    >>> surface_normals(np.zeros((3, 3)))[1, 1].tolist()
+    >>> depth_normals(np.zeros((3, 3)))[1, 1].tolist()
     [0.0, 0.0, -1.0]
     """
     depth = _smooth_depth(depth, smoothing * scale)
@@ -131,7 +131,7 @@ def gradient_shading(depth, scale=1.0, light=(0.0, 0.0, -1.0), ambient=0.1, dept
     >>> float(flat[1, 1])
     1.0
     """
-    lambert = np.clip(surface_normals(depth, scale, smoothing) @ light_direction(light), 0, 1)
+    lambert = np.clip(depth_normals(depth, scale, smoothing) @ light_direction(light), 0, 1)
     covered, cue = _depth_cue(depth, depth_cue)
     return np.where(covered, (ambient + (1 - ambient) * lambert) * cue, 0.0)
 
@@ -238,7 +238,7 @@ def shade(depth, mode="gradient", scale=1.0, light=HEADLIGHT, colour=(1.0, 1.0, 
         lit = None if normals is None else np.asarray(normals, np.float32).reshape(-1, 3)[covered]
         missing = np.ones(len(covered), bool) if lit is None else ~np.isfinite(lit).all(axis=1)
         if missing.any():                                   # the depth gradient where no normal is known
-            from_depth = surface_normals(depth, scale, 0.7).reshape(-1, 3)[covered].astype(np.float32)
+            from_depth = depth_normals(depth, scale, 0.7).reshape(-1, 3)[covered].astype(np.float32)
             lit = from_depth if lit is None else np.where(missing[:, None], from_depth, lit)
         brightness = _blinn_phong(lit, np.asarray(depth, np.float32).ravel()[covered], light)
     elif mode == "depth-gradient":

@@ -127,7 +127,7 @@ def _describe_volume(path, volume, prepare):
     mask, info = prep.binarize(volume, threshold, crop=prepare.crop, voxel=prepare.voxel,
                                resample=prepare.resample, min_object=prepare.min_object)
     encoded = segments.encode(mask)
-    summary.update({"threshold": str(threshold) if isinstance(threshold, prep.Window) else threshold,
+    summary.update({"threshold": str(threshold) if isinstance(threshold, prep.Interval) else threshold,
                     "object_grid_xyz": list(mask.shape[::-1]),
                     "object_voxel_mm": info["voxel"], "object_voxels": encoded.voxel_count,
                     "object_fraction": round(encoded.voxel_count / mask.size, 6),
