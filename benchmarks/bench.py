@@ -402,7 +402,8 @@ def bench_raycast(repeat, cases):
 
 def bench_batch(path, views=36, size=512, separate=True):
     """A turntable of ``views`` pictures: one batch with 1 and 2 workers against separate render commands."""
-    from voxrender.batch.run import Patterns, items_from, parse_views, run_batch
+    from voxrender.batch.run import run_batch
+    from voxrender.batch.spec import Patterns, items_from, parse_views
     from voxrender.object.pipeline import PrepOptions, ReadOptions
     from voxrender.pictures._picture import RenderOptions
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from voxrender.batch import cache, spec, tasks
 from voxrender.batch import run as batch
 from voxrender.cli import main
 from voxrender.errors import InputError
@@ -36,13 +37,13 @@ def read_summary(path):
 
 
 def items(paths, views=None, size=(32, 32)):
-    return batch.items_from([str(p) for p in paths], [], ReadOptions(), PrepOptions(threshold=500),
-                            RenderOptions(size=size), views or batch.parse_views(["anterior"], [(30, 20, 10)]),
-                            batch.Patterns())
+    return spec.items_from([str(p) for p in paths], [], ReadOptions(), PrepOptions(threshold=500),
+                            RenderOptions(size=size), views or spec.parse_views(["anterior"], [(30, 20, 10)]),
+                            spec.Patterns())
 
 
 def test_turntable_turns_the_object_about_its_axis():
-    views = batch.turntable(8, "z")
+    views = spec.turntable(8, "z")
     base = rotation_matrix(*PRESETS["anterior"])
     for k, view in enumerate(views):
         expected = base @ rotation_matrix(0, 0, 45 * k)
@@ -51,30 +52,30 @@ def test_turntable_turns_the_object_about_its_axis():
 
 
 def test_views_and_names():
-    assert [v.label for v in batch.parse_views()] == ["anterior"]
-    assert [v.label for v in batch.parse_views(["left"], turntable_count=3)][0] == "turn000"
+    assert [v.label for v in spec.parse_views()] == ["anterior"]
+    assert [v.label for v in spec.parse_views(["left"], turntable_count=3)][0] == "turn000"
     with pytest.raises(InputError):
-        batch.parse_views(["left", "left"])
+        spec.parse_views(["left", "left"])
     with pytest.raises(InputError):
-        batch.parse_views(["sideways"])
-    assert batch._unique_names(["x/ct", "y/ct", "z/a.npy"]) == ["ct", "ct-2", "a"]
+        spec.parse_views(["sideways"])
+    assert spec._unique_names(["x/ct", "y/ct", "z/a.npy"]) == ["ct", "ct-2", "a"]
 
 
 def test_manifests(tmp_path, stacks):
     (tmp_path / "m.csv").write_text("input,threshold,views,method,output\n"
                                     f"{stacks / 'ball.npy'},500,\"left;30,0,0\",btf,{{name}}-{{view}}.png\n"
                                     "in/box.npy,,,,\n")
-    rows = batch.read_manifest(tmp_path / "m.csv")
-    made = batch.items_from([], rows, ReadOptions(), PrepOptions(threshold=700), RenderOptions(),
-                            batch.parse_views(), batch.Patterns())
+    rows = spec.read_manifest(tmp_path / "m.csv")
+    made = spec.items_from([], rows, ReadOptions(), PrepOptions(threshold=700), RenderOptions(),
+                            spec.parse_views(), spec.Patterns())
     assert [v.label for v in made[0].views] == ["left", "a30_b0_g0"] and made[0].method == "btf"
     assert made[0].prepare.threshold == 500 and made[1].prepare.threshold == 700
     assert made[1].input == str(tmp_path / "in" / "box.npy")
     (tmp_path / "m.toml").write_text('[[input]]\ninput = "in/ball.npy"\nviews = "superior"\n')
-    assert batch.read_manifest(tmp_path / "m.toml")[0]["views"] == "superior"
+    assert spec.read_manifest(tmp_path / "m.toml")[0]["views"] == "superior"
     (tmp_path / "bad.csv").write_text("path\nx\n")
     with pytest.raises(InputError, match="'input' column"):
-        batch.read_manifest(tmp_path / "bad.csv")
+        spec.read_manifest(tmp_path / "bad.csv")
 
 
 def test_a_manifest_row_keeps_its_labels_with_its_threshold_and_takes_a_name(tmp_path, stacks):
@@ -84,8 +85,8 @@ def test_a_manifest_row_keeps_its_labels_with_its_threshold_and_takes_a_name(tmp
                                     "in/ball.npy,model-a,in/seg.npy,500\n"
                                     "in/ball.npy,model-b,in/seg.npy,\n"
                                     "in/box.npy,,,\n")
-    made = batch.items_from([], batch.read_manifest(tmp_path / "m.csv"), ReadOptions(), PrepOptions(threshold=700),
-                            RenderOptions(), batch.parse_views(), batch.Patterns())
+    made = spec.items_from([], spec.read_manifest(tmp_path / "m.csv"), ReadOptions(), PrepOptions(threshold=700),
+                            RenderOptions(), spec.parse_views(), spec.Patterns())
     assert [item.name for item in made] == ["model-a", "model-b", "box"]
     assert made[0].prepare.labels.source == tmp_path / "in" / "seg.npy" and made[0].prepare.threshold == 500
     assert made[1].prepare.labels is not None and made[1].prepare.threshold == 700
@@ -93,8 +94,8 @@ def test_a_manifest_row_keeps_its_labels_with_its_threshold_and_takes_a_name(tmp
                         ((".hidden", "b"), "not a file name of its own")]:
         rows = [{"input": str(stacks / "ball.npy"), "name": n} for n in names]
         with pytest.raises(InputError, match=said):
-            batch.items_from([], rows, ReadOptions(), PrepOptions(), RenderOptions(), batch.parse_views(),
-                             batch.Patterns())
+            spec.items_from([], rows, ReadOptions(), PrepOptions(), RenderOptions(), spec.parse_views(),
+                             spec.Patterns())
 
 
 def test_batch_renders_reports_failures_and_resumes(tmp_path, stacks):
@@ -114,17 +115,17 @@ def test_batch_renders_reports_failures_and_resumes(tmp_path, stacks):
     (out / "ball" / "anterior.png").write_bytes((out / "ball" / "anterior.png").read_bytes()[:50])
     again = batch.run_batch(work, out, jobs=1)
     assert [r["status"] for r in again] == ["ok", "done earlier", "failed", "failed", "ok", "done earlier"]
-    assert {tuple(r)[:10] for r in again} == {tuple(batch.SUMMARY_COLUMNS[:10])}   # one row, whatever its status
+    assert {tuple(r)[:10] for r in again} == {tuple(tasks.SUMMARY_COLUMNS[:10])}   # one row, whatever its status
     assert iio.imread(out / "ball" / "anterior.png").shape == (40, 48)
 
 
 def test_cache_is_keyed_by_content_and_options(tmp_path, stacks):
     read = ReadOptions()
-    key = batch.cache_key(stacks / "ball.npy", read, PrepOptions(threshold=500))
-    assert key == batch.cache_key(stacks / "ball.npy", read, PrepOptions(threshold=500))
-    assert key != batch.cache_key(stacks / "ball.npy", read, PrepOptions(threshold=501))
+    key = cache.cache_key(stacks / "ball.npy", read, PrepOptions(threshold=500))
+    assert key == cache.cache_key(stacks / "ball.npy", read, PrepOptions(threshold=500))
+    assert key != cache.cache_key(stacks / "ball.npy", read, PrepOptions(threshold=501))
     np.save(tmp_path / "copy.npy", np.load(stacks / "ball.npy") + 1)
-    assert key != batch.cache_key(tmp_path / "copy.npy", read, PrepOptions(threshold=500))
+    assert key != cache.cache_key(tmp_path / "copy.npy", read, PrepOptions(threshold=500))
 
 
 def test_worker_processes_give_the_same_pictures(tmp_path, stacks):
@@ -147,7 +148,7 @@ def test_local_dask_cluster(tmp_path, stacks):
 
 
 def test_turntable_animation(tmp_path, stacks):
-    work = items([stacks / "ball.npy"], batch.parse_views(turntable_count=6), size=(24, 24))
+    work = items([stacks / "ball.npy"], spec.parse_views(turntable_count=6), size=(24, 24))
     batch.run_batch(work, tmp_path, jobs=1, animations=["gif"])
     frames = iio.imread(tmp_path / "ball.gif")
     assert frames.shape[:3] == (6, 24, 24)
@@ -155,25 +156,25 @@ def test_turntable_animation(tmp_path, stacks):
 
 def test_mp4_animation(tmp_path, stacks):
     pytest.importorskip("imageio_ffmpeg", reason="MP4 is the extra 'video'")
-    work = items([stacks / "ball.npy"], batch.parse_views(turntable_count=4))
+    work = items([stacks / "ball.npy"], spec.parse_views(turntable_count=4))
     batch.run_batch(work, tmp_path, jobs=1, animations=["mp4"])
     assert (tmp_path / "ball.mp4").stat().st_size > 0
 
 
 def test_patterns_are_checked(tmp_path, stacks):
     work = items([stacks / "ball.npy"])
-    work[0].patterns = batch.Patterns("{name}.png")
+    work[0].patterns = spec.Patterns("{name}.png")
     with pytest.raises(InputError, match="twice"):
         batch.run_batch(work, tmp_path, jobs=1)
-    work[0].patterns = batch.Patterns("{nope}/{view}.png")
+    work[0].patterns = spec.Patterns("{nope}/{view}.png")
     with pytest.raises(InputError, match="not valid") as info:
         batch.run_batch(work, tmp_path, jobs=1)
     assert info.value.parameter == "picture"                 # --pattern
-    work[0].patterns = batch.Patterns(stats_json="{name}/{nope}.json")
+    work[0].patterns = spec.Patterns(stats_json="{name}/{nope}.json")
     with pytest.raises(InputError, match="'{name}/{nope}.json' is not valid") as info:
         batch.run_batch(work, tmp_path, jobs=1)
     assert info.value.parameter == "stats_json"              # --stats-json, not --pattern
-    work[0].patterns = batch.Patterns(depth="{name}/{view}.png")
+    work[0].patterns = spec.Patterns(depth="{name}/{view}.png")
     with pytest.raises(InputError, match="must end in .npy") as info:
         batch.run_batch(work, tmp_path, jobs=1)
     assert info.value.parameter == "depth"
@@ -199,12 +200,12 @@ def test_octree_pictures_of_one_object_share_its_octree(stacks, tmp_path):
     assert [row["status"] for row in rows] == ["ok"] * 3
     path = next((tmp_path / "out" / ".voxrender-cache").glob("*.vxo"))
     stamp = (path.stat().st_size, path.stat().st_mtime_ns)
-    assert batch._encoded(str(path), stamp) is batch._encoded(str(path), stamp)
-    assert batch._encoded(str(path), stamp).has_octree          # read from the file, not built
+    assert cache.load_encoded(str(path), stamp) is cache.load_encoded(str(path), stamp)
+    assert cache.load_encoded(str(path), stamp).has_octree          # read from the file, not built
 
 
 def test_a_turntable_keeps_one_scale_and_centres_every_frame(tmp_path, stacks):
-    work = items([stacks / "box.npy"], batch.parse_views(turntable_count=4), size=(40, 40))
+    work = items([stacks / "box.npy"], spec.parse_views(turntable_count=4), size=(40, 40))
     rows = batch.run_batch(work, tmp_path, jobs=1, animations=[])
     assert [row["status"] for row in rows] == ["ok"] * 4
     pictures = [iio.imread(row["output"]) > 0 for row in rows]
@@ -218,7 +219,7 @@ def test_a_turntable_keeps_one_scale_and_centres_every_frame(tmp_path, stacks):
 
 
 def test_index_page_and_sheet(tmp_path, stacks):
-    work = items([stacks / "ball.npy", stacks / "broken.npy"], batch.parse_views(["anterior", "left"]), size=(24, 24))
+    work = items([stacks / "ball.npy", stacks / "broken.npy"], spec.parse_views(["anterior", "left"]), size=(24, 24))
     batch.run_batch(work, tmp_path, jobs=1, make_sheet=True)
     ball, broken = sorted(read_index(tmp_path / "index.html"), key=lambda study: study.name)
     assert [path for _, path in ball.pictures] == ["ball/anterior.png", "ball/left.png"]  # a row per study, its views
@@ -233,11 +234,11 @@ def test_outputs_stay_inside_the_batch_folder(tmp_path, stacks):
     refused = [("../../escaped.png", "picture"), (str(tmp_path / "abs" / "{view}.png"), "picture"),
                ("{name}/../../{view}.png", "picture")]
     for pattern, parameter in refused:
-        work[0].patterns = batch.Patterns(pattern)
+        work[0].patterns = spec.Patterns(pattern)
         with pytest.raises(InputError, match="outside the batch's folder") as info:
             batch.run_batch(work, out, jobs=1)
         assert info.value.parameter == parameter
-    work[0].patterns = batch.Patterns(depth="../{name}-{view}.npy")
+    work[0].patterns = spec.Patterns(depth="../{name}-{view}.npy")
     with pytest.raises(InputError, match="outside") as info:
         batch.run_batch(work, out, jobs=1)
     assert info.value.parameter == "depth"
@@ -246,24 +247,24 @@ def test_outputs_stay_inside_the_batch_folder(tmp_path, stacks):
     (tmp_path / "elsewhere").mkdir()
     out.mkdir()
     (out / "link").symlink_to(tmp_path / "elsewhere")                   # a link inside that points out
-    work[0].patterns = batch.Patterns("link/{view}.png")
+    work[0].patterns = spec.Patterns("link/{view}.png")
     with pytest.raises(InputError, match=r"outside the batch's folder .* \(a symbolic link leads to .*elsewhere"):
         batch.run_batch(work, out, jobs=1)
     assert not list((tmp_path / "elsewhere").iterdir())
-    work[0].patterns = batch.Patterns("a/../{view}.png")                # a '..' that stays inside is fine
+    work[0].patterns = spec.Patterns("a/../{view}.png")                # a '..' that stays inside is fine
     assert [r["status"] for r in batch.run_batch(work, out, jobs=1)] == ["ok", "ok"]
 
 
 def test_inputs_are_never_written(tmp_path, stacks):
-    work = items([stacks / "ball.npy"], batch.parse_views(["left"]))
-    work[0].patterns = batch.Patterns(depth="in/{name}.npy")
+    work = items([stacks / "ball.npy"], spec.parse_views(["left"]))
+    work[0].patterns = spec.Patterns(depth="in/{name}.npy")
     before = (stacks / "ball.npy").read_bytes()
     with pytest.raises(InputError, match="over or inside the input .*ball.npy"):
         batch.run_batch(work, tmp_path, jobs=1)
     assert (stacks / "ball.npy").read_bytes() == before
     folder = tmp_path / "slices"               # a folder input: nothing is written inside it, not even the cache
     folder.mkdir()
-    work = items([folder], batch.parse_views(["left"]))
+    work = items([folder], spec.parse_views(["left"]))
     with pytest.raises(InputError, match="over or inside the input"):
         batch.run_batch(work, folder / "out", jobs=1)
     with pytest.raises(InputError, match="the cache .* would be written inside the input"):
@@ -304,8 +305,8 @@ def test_qc_sheets_are_made_of_slice_stacks_and_an_encoded_object_still_renders(
 
     encoded = tmp_path / "ball.vxs"
     vxs.save(segments.encode(np.load(stacks / "ball.npy") > 500), encoded)
-    work = batch.items_from([str(stacks / "box.npy"), str(encoded)], [], ReadOptions(), PrepOptions(threshold=500),
-                            RenderOptions(size=(24, 24)), batch.parse_views(["anterior"]), batch.Patterns(),
+    work = spec.items_from([str(stacks / "box.npy"), str(encoded)], [], ReadOptions(), PrepOptions(threshold=500),
+                            RenderOptions(size=(24, 24)), spec.parse_views(["anterior"]), spec.Patterns(),
                             qc_sheet=True, slices=SliceOptions(("axial",)))
     rows = batch.run_batch(work, tmp_path / "out", jobs=1, make_sheet=True)
     assert [row["status"] for row in rows] == ["ok", "ok"]
@@ -320,9 +321,9 @@ def test_a_rerun_keeps_each_pictures_labels_in_the_summary_and_the_page(tmp_path
     labels = np.zeros((12, 12, 12), np.uint8)
     labels[2:6, 2:6, 2:6], labels[7:10, 7:10, 7:10] = 1, 2
     np.save(tmp_path / "map.npy", labels)
-    work = batch.items_from([str(tmp_path / "map.npy"), str(stacks / "box.npy")], [], ReadOptions(),
+    work = spec.items_from([str(tmp_path / "map.npy"), str(stacks / "box.npy")], [], ReadOptions(),
                             PrepOptions(threshold=None, labels=LabelSelection()), RenderOptions(size=(24, 24)),
-                            batch.parse_views(["anterior"]), batch.Patterns())
+                            spec.parse_views(["anterior"]), spec.Patterns())
     work[1].prepare = PrepOptions(threshold=500)                # a CT alone: no labels, so none missing
     pages = []
     for _ in range(2):

@@ -23,6 +23,7 @@ from click.testing import CliRunner
 
 from voxrender._shared.executors import executor
 from voxrender._shared.files import PARTIAL
+from voxrender.batch import cache, spec, tasks
 from voxrender.batch import run as batch
 from voxrender.cli import main
 from voxrender.errors import InputError
@@ -42,9 +43,9 @@ def stacks(tmp_path):
 
 
 def items(paths, views=None, size=(32, 32)):
-    return batch.items_from([str(p) for p in paths], [], ReadOptions(), PrepOptions(threshold=500),
-                            RenderOptions(size=size), views or batch.parse_views(["anterior", "left"]),
-                            batch.Patterns())
+    return spec.items_from([str(p) for p in paths], [], ReadOptions(), PrepOptions(threshold=500),
+                            RenderOptions(size=size), views or spec.parse_views(["anterior", "left"]),
+                            spec.Patterns())
 
 
 def read_summary(path):
@@ -106,8 +107,8 @@ def test_a_killed_worker_fails_its_rows_and_the_others_finish(tmp_path, stacks, 
     """A worker process kills itself with SIGKILL in the middle of each picture of the box (the patched picture
     step reaches the forked workers); the box's rows say so and the ball's pictures are all made.
     """
-    monkeypatch.setattr(batch, "picture", _killing_for_the_box(batch.picture))
-    work = items([stacks / "ball.npy", stacks / "box.npy"], batch.parse_views(["anterior", "left", "superior"]))
+    monkeypatch.setattr(tasks, "picture", _killing_for_the_box(tasks.picture))
+    work = items([stacks / "ball.npy", stacks / "box.npy"], spec.parse_views(["anterior", "left", "superior"]))
     rows = batch.run_batch(work, tmp_path / "out", jobs=2)
     assert [r["status"] for r in rows] == ["ok"] * 3 + ["failed"] * 3
     assert all(r["error"] == "its worker process died (killed by SIGKILL)" for r in rows[3:])
@@ -140,7 +141,7 @@ def test_a_killed_dask_worker_fails_its_rows_and_the_others_finish(tmp_path, sta
     import dask
 
     out = tmp_path / "out"
-    monkeypatch.setattr(batch, "picture", _killing_for_the_box(batch.picture, on_dask=True))
+    monkeypatch.setattr(tasks, "picture", _killing_for_the_box(tasks.picture, on_dask=True))
     work = items([stacks / "ball.npy", stacks / "box.npy"])
     work[1].views = work[1].views[:1]
     with dask.config.set({"distributed.worker.multiprocessing-method": "fork"}):
@@ -257,7 +258,7 @@ def test_a_read_only_output_folder_is_refused_before_any_rendering(tmp_path, sta
     """A read-only tmpfs as the output folder (root, who runs here, writes through a chmod 0o555; a read-only
     file system stops root too).
     """
-    monkeypatch.setattr(batch, "picture", lambda *args, **kwargs: pytest.fail("rendered into a read-only folder"))
+    monkeypatch.setattr(tasks, "picture", lambda *args, **kwargs: pytest.fail("rendered into a read-only folder"))
     with tmpfs(tmp_path / "ro", "ro,size=16k") as out:
         with pytest.raises(InputError, match="cannot write in .*Read-only file system"):
             batch.run_batch(items([stacks / "ball.npy"]), out, jobs=1)
@@ -315,14 +316,14 @@ def test_a_damaged_or_tampered_cache_entry_is_made_again(tmp_path, stacks):
     tampered = bytearray(sound)
     tampered[len(sound) // 2: len(sound) // 2 + 8] = bytes(~b & 0xFF for b in tampered[len(sound) // 2:][:8])
     entry.write_bytes(bytes(tampered))
-    assert not batch._is_intact(entry)
+    assert not cache.is_intact(entry)
     render_again()
-    batch._record_of(entry).write_text("{not json")
-    assert not batch._is_intact(entry)
+    cache.record_of(entry).write_text("{not json")
+    assert not cache.is_intact(entry)
     render_again()
-    batch._record_of(entry).unlink()                 # an entry whose record was never written: made again too
+    cache.record_of(entry).unlink()                 # an entry whose record was never written: made again too
     render_again()
-    assert batch._is_intact(entry)
+    assert cache.is_intact(entry)
 
 
 def _blas_threads():

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import click
 
-from ..batch import parse
-from ..batch import run as batch
+from ..batch import parse, spec
+from ..batch.run import run_batch
 from ..errors import InputError
 from ..space.view import PRESETS
 from ._main import main
@@ -94,7 +94,7 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
     """
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(f"--out {out_dir} is a file; give a folder")
-    patterns = batch.Patterns(pattern, **{name: str(path) for name, path in output_paths_of(options).items()})
+    patterns = spec.Patterns(pattern, **{name: str(path) for name, path in output_paths_of(options).items()})
     slice_options = slice_options_of(options)
     render_options = render_options_of(options)
     check_window(render_options, slice_options)
@@ -104,9 +104,9 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
     if slice_options is not None and not make_sheet:
         raise InputError("slices are drawn on each input's QC sheet; give --sheet too", parameter="planes")
     check_study_from(options, options.get("dicom"))
-    items = batch.items_from(batch.expand_inputs(inputs), batch.read_manifest(manifest) if manifest else [],
+    items = spec.items_from(spec.expand_inputs(inputs), spec.read_manifest(manifest) if manifest else [],
                              read_options_of(options), prep_options_of(options), render_options,
-                             batch.parse_views(views, [parse.vector(a, "angles") for a in angles], turntable, axis),
+                             spec.parse_views(views, [parse.vector(a, "angles") for a in angles], turntable, axis),
                              patterns, per_label, make_sheet, slice_options, options["dicom_study_from"],
                              reference, tolerance_mm)
     animations = [kind for kind, wanted in (("gif", gif), ("mp4", mp4)) if wanted]
@@ -114,7 +114,7 @@ def batch_command(inputs, out_dir, manifest, views, angles, turntable, axis, pat
     from ..qc.index_page import read_verdicts
 
     earlier = read_verdicts(verdicts) if verdicts is not None else None
-    summary = batch.run_batch(items, out_dir, jobs, scheduler, cache, animations, fps, _BatchBar, make_sheet,
+    summary = run_batch(items, out_dir, jobs, scheduler, cache, animations, fps, _BatchBar, make_sheet,
                               min_dice, min_nsd, earlier)
     made = sum(r["status"] == "ok" for r in summary)
     earlier = sum(r["status"] == "done earlier" for r in summary)

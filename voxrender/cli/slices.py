@@ -8,8 +8,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from ..batch import parse
-from ..batch import run as batch
+from ..batch import parse, spec
 from ..errors import InputError
 from ..object import prep
 from ..object.pipeline import Encoded, PrepOptions, load_segments
@@ -192,7 +191,7 @@ def sheet_command(inputs, output_path, views, view_list, angles, methods, per_la
     dicom = options.get("dicom")
     check_output_paths({"picture": output_path, "dicom": dicom})
     names = [*views, *(parse.planes(view_list) if view_list else ())]
-    chosen = batch.parse_views(names, [parse.vector(a, "angles") for a in angles])
+    chosen = spec.parse_views(names, [parse.vector(a, "angles") for a in angles])
     columns = [(v.label, (v.alpha, v.beta, v.gamma)) for v in chosen]
     render_options = render_options_of(options)
     read, prepare = read_options_of(options), prep_options_of(options)
