@@ -9,7 +9,7 @@ from pydicom.uid import ExplicitVRLittleEndian, ImplicitVRLittleEndian
 
 from voxrender import io
 from voxrender.errors import InputError
-from voxrender.io import dicom
+from voxrender.io import _dicom_header, _dicom_values, dicom
 
 
 def recode(paths, syntax=ExplicitVRLittleEndian, allocated=16, stored=None, signed=True, raw=None, **elements):
@@ -34,7 +34,7 @@ def recode(paths, syntax=ExplicitVRLittleEndian, allocated=16, stored=None, sign
 def pydicom_read(path, monkeypatch, **options):
     """The volume as pydicom decodes every slice (the plain reading turned off)."""
     with monkeypatch.context() as patch:
-        patch.setattr(dicom, "_plain_pixels", lambda *args: None)
+        patch.setattr(dicom, "plain_pixels", lambda *args: None)
         return io.read_volume(path, **options).values
 
 
@@ -44,7 +44,7 @@ def plain_read(path, monkeypatch, **options):
         raise AssertionError(f"pydicom decoded {path}")
 
     with monkeypatch.context() as patch:
-        patch.setattr(dicom, "_dicom_pixels", decoded)
+        patch.setattr(_dicom_values, "dicom_pixels", decoded)
         return io.read_volume(path, **options).values
 
 
@@ -57,7 +57,7 @@ def assert_same_values(path, monkeypatch, plain=True):
     np.testing.assert_array_equal(values, expected)
     stack = io.open_stack(path)
     with monkeypatch.context() as patch:
-        patch.setattr(dicom, "_plain_pixels", lambda *args: None)
+        patch.setattr(dicom, "plain_pixels", lambda *args: None)
         slow = io.open_stack(path)
     assert stack.dtype == slow.dtype
     slabs = np.concatenate([stack.read_slices(z, min(z + 2, stack.shape[0])) for z in range(0, stack.shape[0], 2)])
@@ -143,7 +143,7 @@ def test_slices_stored_in_other_types(tmp_path, monkeypatch):
 def test_a_header_longer_than_the_first_read_is_read_from_the_file(tmp_path, monkeypatch):
     raw = RNG.integers(-2000, 2000, (3, 4, 4))
     recode(write_series(tmp_path, np.zeros((3, 4, 4))), raw=raw, ImageComments="x" * 5000)
-    monkeypatch.setattr(dicom, "HEADER_BYTES", 1000)
+    monkeypatch.setattr(_dicom_header, "HEADER_BYTES", 1000)
     np.testing.assert_array_equal(assert_same_values(tmp_path, monkeypatch), raw - 1024)
 
 
@@ -161,8 +161,8 @@ def test_only_plain_pixels_are_read_plainly(tmp_path, monkeypatch):
     ds = pydicom.dcmread(paths[2])
     ds.PixelData += b"\0\0"
     ds.save_as(paths[2])
-    headers = {path: dicom._read_header(path) for path in paths}
-    plain = {path.name: dicom._plain_pixels(*headers[path]) for path in paths}
+    headers = {path: _dicom_header.read_header(path) for path in paths}
+    plain = {path.name: _dicom_header.plain_pixels(*headers[path]) for path in paths}
     assert plain == {"0.dcm": None, "1.dcm": None, "2.dcm": None, "3.dcm": plain["3.dcm"]}
     assert plain["3.dcm"].dtype == np.int16 and plain["3.dcm"].shift == 0
     assert_same_values(tmp_path, monkeypatch, plain=False)
@@ -204,12 +204,12 @@ def test_header_values_stored_alike_are_decoded_once():
                                                    True)})
 
     first, alike, damaged, decoded = header(b"\x03\x00"), header(b"\x03\x00"), header(b"\x03\x00\x00"), {}
-    dicom._decode_header(first, decoded)
-    dicom._decode_header(alike, decoded)
+    _dicom_header.decode_header(first, decoded)
+    _dicom_header.decode_header(alike, decoded)
     assert not isinstance(first.get_item(0x00280010), RawDataElement)
     assert isinstance(alike.get_item(0x00280010), RawDataElement) and alike.Rows == first.Rows == 3
     with pytest.raises(BytesLengthException):
-        dicom._decode_header(damaged, decoded)
+        _dicom_header.decode_header(damaged, decoded)
 
 
 def test_a_file_cut_in_its_header_is_one_line(tmp_path):
@@ -234,7 +234,7 @@ def test_a_damaged_deflated_file_is_one_line(tmp_path, monkeypatch, damage):
 
     raw = RNG.integers(-2000, 2000, (3, 6, 7))
     paths = recode(write_series(tmp_path, np.zeros((3, 6, 7))), DeflatedExplicitVRLittleEndian, raw=raw)
-    assert all(dicom._plain_pixels(*dicom._read_header(path)) is None for path in paths)
+    assert all(_dicom_header.plain_pixels(*_dicom_header.read_header(path)) is None for path in paths)
     np.testing.assert_array_equal(assert_same_values(tmp_path, monkeypatch, plain=False), raw - 1024)
     whole = paths[1].read_bytes()
     middle = len(whole) // 2
@@ -289,7 +289,7 @@ def test_files_pydicom_reads_otherwise_are_left_to_it(tmp_path, monkeypatch, cas
             ds.file_meta.TransferSyntaxUID = ExplicitVRLittleEndian if case.endswith("explicit") else \
                 ImplicitVRLittleEndian
             _write_encoded(path, ds, case.endswith("explicit"), True)
-    assert all(dicom._plain_pixels(*dicom._read_header(path)) is None for path in paths)
+    assert all(_dicom_header.plain_pixels(*_dicom_header.read_header(path)) is None for path in paths)
     if case == "float pixel data":
         with pytest.raises(InputError, match="One and only one of 'Pixel Data', 'Float Pixel Data'"):
             io.read_volume(tmp_path)

@@ -136,7 +136,7 @@ def test_a_bug_in_a_reading_call_is_an_internal_error(tmp_path, monkeypatch, for
 
 
 @pytest.mark.parametrize("format, function", [("images", "voxrender.io.images.to_grey"),
-                                              ("dicom", "voxrender.io.dicom._rescale"),
+                                              ("dicom", "voxrender.io.dicom._slices_placed"),
                                               ("nifti", "voxrender.io.nifti.check_spacing")])
 def test_a_bug_in_a_reader_is_an_internal_error(tmp_path, monkeypatch, format, function):
     path, options = small_input(format, tmp_path / format)

@@ -12,7 +12,7 @@ from formats import phantom, random_stack, stored, write_dicom
 
 from voxrender import io
 from voxrender.errors import InputError
-from voxrender.io import _shared, dicom
+from voxrender.io import _shared
 
 
 def assert_slabs_are_the_volume(path, **options):
@@ -246,9 +246,11 @@ def test_dicom_headers_that_tell_the_type_spare_a_pass_over_the_pixels(tmp_path,
     write_series(tmp_path, random_stack((4, 3, 5)).astype(np.int16), intercept=0)          # int16 whatever it holds
     write_series(tmp_path / "ct", random_stack((4, 3, 5)).astype(np.int16), intercept=-1024)
     read = []
-    for name in ("_dicom_pixels", "_read_plain"):                  # decoded by pydicom, or read straight
-        function = getattr(dicom, name)
-        monkeypatch.setattr(dicom, name, lambda path, *args, function=function: read.append(path) or
+    from voxrender.io import _dicom_header, _dicom_values
+
+    for module, name in ((_dicom_values, "dicom_pixels"), (_dicom_header, "read_plain")):   # decoded, or read straight
+        function = getattr(module, name)
+        monkeypatch.setattr(module, name, lambda path, *args, function=function: read.append(path) or
                             function(path, *args))
     assert io.open_stack(tmp_path).dtype == np.int16 and read == []
     assert io.open_stack(tmp_path / "ct").dtype == np.int16 and len(read) == 4     # a signed 16-bit CT: its range
