@@ -212,3 +212,19 @@ def test_a_projection_is_a_kind_not_a_flag():
             if isinstance(node, ast.Attribute) and node.attr == "projection" and isinstance(node.ctx, ast.Load):
                 asking.append(f"{module}:{node.lineno}")
     assert asking == []
+
+
+def test_one_idea_a_file():
+    """No module over 700 lines, no function over 120, at most 15 modules and packages at the top of voxrender/:
+    past those, a file holds more than one idea (issue 42)."""
+    long_modules, long_functions = [], []
+    for module, path in modules_of(ROOT).items():
+        text = path.read_text(encoding="utf-8")
+        if text.count("\n") > 700:
+            long_modules.append(module)
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno - node.lineno >= 120:
+                long_functions.append(f"{module}.{node.name}")
+    top = [p.name for p in ROOT.iterdir() if p.name not in ("__init__.py", "__pycache__", "data")
+           and (p.suffix == ".py" or (p / "__init__.py").is_file())]
+    assert long_modules == [] and long_functions == [] and len(top) <= 15, (long_modules, long_functions, top)

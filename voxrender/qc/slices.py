@@ -288,41 +288,8 @@ def slice_picture(grey, pixel_mm, window, labels=None, table=None, overlay="fill
     >>> picture.shape, picture[0, 1].tolist(), picture[0, 0].tolist()
     ((4, 4, 3), [164, 64, 64], [128, 128, 128])
     """
-    grey = np.asarray(grey)
-    if grey.ndim != 2 or grey.size == 0:
-        raise InputError(f"the slice must be a 2-D image, not of shape {grey.shape}", parameter="grey")
-    if overlay is not None and overlay not in OVERLAYS:
-        raise InputError(f"unknown overlay {overlay!r}; choose one of {', '.join(OVERLAYS)}", parameter="overlay")
-    if not 0 <= opacity <= 1:
-        raise InputError(f"{opacity} is not within 0 to 1 (0 clear, 1 solid colour)", parameter="opacity")
-    row_mm, column_mm = (float(v) for v in pixel_mm)
-    if not (row_mm > 0 and column_mm > 0 and math.isfinite(row_mm) and math.isfinite(column_mm)):
-        raise InputError(f"{pixel_mm} must be two positive pixel sizes in mm", parameter="pixel_mm")
-    if labels is not None:
-        labels = np.asarray(labels)
-        labels = labels.view(np.uint8) if labels.dtype == bool else labels         # a mask: label 1
-        if labels.shape != grey.shape or labels.dtype.kind not in "iu":
-            raise InputError(f"the labels ({labels.dtype}, {labels.shape}) must be whole numbers on the slice's grid "
-                             f"{grey.shape}", parameter="labels")
-        if labels.dtype.kind == "i" and labels.size and labels.min() < 0:
-            raise InputError("the labels hold negative numbers; labels are 0 (background) or above",
-                             parameter="labels")
-    elif overlay is not None:
-        raise InputError(f"the {overlay!r} overlay needs labels; give the label slice, or overlay None for the grey "
-                         "slice alone", parameter="overlay")
-
-    height, width = grey.shape
-    if size is None:
-        mm = min(row_mm, column_mm)                                    # the finer spacing: no detail is lost
-        shown = (max(round(height * row_mm / mm), 1), max(round(width * column_mm / mm), 1))
-        canvas = shown
-    else:
-        canvas = (int(size[0]), int(size[1]))
-        if canvas[0] < 1 or canvas[1] < 1:
-            raise InputError(f"{size} must be at least 1 x 1 pixels", parameter="size")
-        mm = max(height * row_mm / canvas[0], width * column_mm / canvas[1])
-        shown = (min(max(round(height * row_mm / mm), 1), canvas[0]), min(max(round(width * column_mm / mm), 1),
-                                                                          canvas[1]))
+    grey, (row_mm, column_mm), labels = _checked(grey, pixel_mm, labels, overlay, opacity)
+    canvas, shown, mm = _fitted(grey.shape, row_mm, column_mm, size)
     top, left = (canvas[0] - shown[0]) // 2, (canvas[1] - shown[1]) // 2
 
     picture = np.empty((*canvas, 3), np.uint8)
@@ -350,6 +317,55 @@ def slice_picture(grey, pixel_mm, window, labels=None, table=None, overlay="fill
         if entries:
             picture = draw_legend(picture, entries)
     return picture
+
+
+def _checked(grey, pixel_mm, labels, overlay, opacity):
+    """:func:`slice_picture`'s inputs checked: the grey slice and labels as arrays (a mask as label 1) and the pixel
+    sizes in mm as floats.
+    """
+    grey = np.asarray(grey)
+    if grey.ndim != 2 or grey.size == 0:
+        raise InputError(f"the slice must be a 2-D image, not of shape {grey.shape}", parameter="grey")
+    if overlay is not None and overlay not in OVERLAYS:
+        raise InputError(f"unknown overlay {overlay!r}; choose one of {', '.join(OVERLAYS)}", parameter="overlay")
+    if not 0 <= opacity <= 1:
+        raise InputError(f"{opacity} is not within 0 to 1 (0 clear, 1 solid colour)", parameter="opacity")
+    row_mm, column_mm = (float(v) for v in pixel_mm)
+    if not (row_mm > 0 and column_mm > 0 and math.isfinite(row_mm) and math.isfinite(column_mm)):
+        raise InputError(f"{pixel_mm} must be two positive pixel sizes in mm", parameter="pixel_mm")
+    if labels is not None:
+        labels = np.asarray(labels)
+        labels = labels.view(np.uint8) if labels.dtype == bool else labels         # a mask: label 1
+        if labels.shape != grey.shape or labels.dtype.kind not in "iu":
+            raise InputError(f"the labels ({labels.dtype}, {labels.shape}) must be whole numbers on the slice's grid "
+                             f"{grey.shape}", parameter="labels")
+        if labels.dtype.kind == "i" and labels.size and labels.min() < 0:
+            raise InputError("the labels hold negative numbers; labels are 0 (background) or above",
+                             parameter="labels")
+    elif overlay is not None:
+        raise InputError(f"the {overlay!r} overlay needs labels; give the label slice, or overlay None for the grey "
+                         "slice alone", parameter="overlay")
+
+    return grey, (row_mm, column_mm), labels
+
+
+def _fitted(shape, row_mm, column_mm, size):
+    """The canvas, the size the slice is shown at within it (true aspect) and the mm a shown pixel spans: the slice
+    at its finer spacing without a ``size``, else fitted into it.
+    """
+    height, width = shape
+    if size is None:
+        mm = min(row_mm, column_mm)                                    # the finer spacing: no detail is lost
+        shown = (max(round(height * row_mm / mm), 1), max(round(width * column_mm / mm), 1))
+        canvas = shown
+    else:
+        canvas = (int(size[0]), int(size[1]))
+        if canvas[0] < 1 or canvas[1] < 1:
+            raise InputError(f"{size} must be at least 1 x 1 pixels", parameter="size")
+        mm = max(height * row_mm / canvas[0], width * column_mm / canvas[1])
+        shown = (min(max(round(height * row_mm / mm), 1), canvas[0]), min(max(round(width * column_mm / mm), 1),
+                                                                          canvas[1]))
+    return canvas, shown, mm
 
 
 def _resample_linear(grey, shape):
