@@ -33,6 +33,8 @@ class Drawn:
         A projection's own projection of the volume ``values[z, y, x]`` along y, whose 1st to 99th percentile is its
         window when none is given: every view of it is then shown alike (:meth:`voxrender.qc.study.Study.window`).
 
+    Notes
+    -----
     The framing of every kind is the surface's: the same fitted view, so a projection lies on its surface picture
     pixel for pixel.
     """
