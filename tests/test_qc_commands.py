@@ -2,6 +2,8 @@
 batch's index page; the same options give the same pictures whichever command draws them, and bad input is one line.
 """
 
+import json
+
 import imageio.v3 as iio
 import numpy as np
 import pytest
@@ -76,12 +78,14 @@ def panel(picture, row, column, size, top=0, gap=4, caption=16):
 
 def test_render_and_batch_give_the_same_projection(tmp_path, ct):
     options = ["--threshold", "-500", "--projection", "mip", "--view", "left", "--size", "40"]
-    result = run("render", ct, *options, "-o", tmp_path / "mip.png")
+    result = run("render", ct, *options, "-o", tmp_path / "mip.png", "--stats-json", tmp_path / "mip.json")
     assert result.exit_code == 0, result.output
     result = run("batch", ct, *options, "-o", tmp_path / "out", "--jobs", "1")
     assert result.exit_code == 0, result.output
     alone, batched = iio.imread(tmp_path / "mip.png"), iio.imread(tmp_path / "out" / "ct" / "left.png")
     assert alone.shape[:2] == (40, 40) and np.array_equal(alone, batched)
+    # the command pays for no surface normals (the batch, whose cache serves its surfaces too, does): same picture
+    assert json.loads((tmp_path / "mip.json").read_text())["object"]["normals_from"].startswith("none")
     assert len(np.unique(alone)) > 3                        # grey values, not a silhouette
 
 

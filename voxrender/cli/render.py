@@ -60,7 +60,8 @@ def render_command(input_path, output_path, **options):
     if render_options.drawn.grey_values:
         from ..qc.study import load_study
 
-        study = load_study(input_path, read, prep_options_of(options), progress)
+        # a projection is framed by the object, and draws no surface: no normals
+        study = load_study(input_path, read, prep_options_of(options), progress, normals=False)
         loaded = study.encoded
     else:
         loaded = load_segments(input_path, read, prep_options_of(options), progress)

@@ -209,13 +209,14 @@ def load_segments(path, read=None, prepare=None, progress=None):
     return Encoded(encoded, {"load": loaded - started, "prepare": time.perf_counter() - loaded})
 
 
-def encode_volume(volume, prepare=None, read=None, progress=None, source=None):
+def encode_volume(volume, prepare=None, read=None, progress=None, source=None, normals=True):
     """The object in a :class:`~voxrender.io.Volume` already read (or made from an array), as
     :class:`~voxrender.object.segments.Segments` with their surface normals: :func:`load_segments` without the reading.
 
     ``read`` says how to read a label map paired with the volume by its path (``prepare.labels.source``, which
     may also be a ``Volume`` on the same grid); ``source`` names where the volume came from (default: its
-    ``meta["source"]``).
+    ``meta["source"]``).  Without ``normals`` the surface normals are left out (a projection, which draws no
+    surface, frames itself by the object alone).
 
     Examples
     --------
@@ -243,16 +244,16 @@ def encode_volume(volume, prepare=None, read=None, progress=None, source=None):
         encoded.meta.update(labels=present, label_table={
             str(k): {"name": name, "colour": list(colour)}
             for k, (name, _, colour) in enumerate(prepare.tissues, 1) if k in present})
-        encoded.normals = _grey_normals(volume, labels > 0, info, prepare)
+        encoded.normals = _grey_normals(volume, labels > 0, info, prepare) if normals else None
     elif prepare.labels is None:
         mask, info = prep.binarize(volume, prepare.selecting, crop=prepare.crop, voxel=prepare.voxel,
                                    resample=prepare.resample, min_object=prepare.min_object, progress=progress)
         encoded = segments.encode(mask, info["spacing"], {**meta, "threshold": info["threshold"],
                                                           "voxel_mm": info["voxel"]})
-        encoded.normals = _grey_normals(volume, mask, info, prepare)
+        encoded.normals = _grey_normals(volume, mask, info, prepare) if normals else None
     else:
-        encoded = _encode_labels(volume, read, prepare, meta, progress)
-    encoded.meta["normals_from"] = encoded.normals.source
+        encoded = _encode_labels(volume, read, prepare, meta, progress, normals)
+    encoded.meta["normals_from"] = encoded.normals.source if normals else "none: the picture draws no surface"
     return encoded
 
 
@@ -267,7 +268,7 @@ def source_meta(volume, source=None):
     return meta
 
 
-def _encode_labels(volume, read, prepare, meta, progress):
+def _encode_labels(volume, read, prepare, meta, progress, normals=True):
     """The chosen labels of a label map (the input, or the map paired with it) as segments: one label per run
     when each label is an object of its own, else one object.
     """
@@ -335,7 +336,7 @@ def _encode_labels(volume, read, prepare, meta, progress):
         encoded = segments.encode_labels(labels, info["spacing"], meta)
     else:
         encoded = segments.encode(labels > 0, info["spacing"], meta)
-    encoded.normals = surface_normals(labels > 0)
+    encoded.normals = surface_normals(labels > 0) if normals else None
     return encoded
 
 

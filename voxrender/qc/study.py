@@ -188,7 +188,7 @@ def cropped(volume, region):
     return replace(volume, values=values, meta=meta)
 
 
-def load_study(path, read=None, prepare=None, progress=None, encode=True):
+def load_study(path, read=None, prepare=None, progress=None, encode=True, normals=True):
     """The :class:`Study` of ``path``: read once, its labels placed on its grid, and, with ``encode``, its object.
 
     Parameters
@@ -202,6 +202,8 @@ def load_study(path, read=None, prepare=None, progress=None, encode=True):
     progress : callable, optional
     encode : bool
         Also encode the object (the surfaces, and the framing of projections need it; slices do not).
+    normals : bool
+        With the object, its surface normals (the surfaces need them; a projection alone does not).
 
     Returns
     -------
@@ -251,7 +253,7 @@ def load_study(path, read=None, prepare=None, progress=None, encode=True):
     encoded = None
     if encode:
         started = time.perf_counter()
-        encoded = Encoded(encode_volume(volume, prepare, read, progress, source=path),
+        encoded = Encoded(encode_volume(volume, prepare, read, progress, source=path, normals=normals),
                           {**seconds, "prepare": time.perf_counter() - started})
     part = cropped(volume, prepare.crop)
     voxel, grid = prep.cubic_grid(part.shape, part.spacing, prepare.voxel, prepare.resample)   # the object's grid
