@@ -1,6 +1,7 @@
 """voxrender.review: agreement with a reference, held to DeepMind's surface-distance on the same masks."""
 
 import warnings
+from pathlib import Path
 
 import nibabel as nib
 import numpy as np
@@ -257,3 +258,39 @@ def test_slices_and_sheet_take_a_reference(tmp_path):
     assert_bad_input(run("sheet", ct, *common, "--views", "anterior", "-o", tmp_path / "x.png"), "--reference",
                      "--slices or --projection")
     assert not (tmp_path / "x.png").exists()
+
+
+def test_a_label_source_is_paired_with_its_image_once_per_study(tmp_path, monkeypatch):
+    """sheet --reference and a batch with a reference read and place the labels once, for the pictures and the
+    agreement both, and measure what agreement() measures; a study already in the cache is read for its agreement."""
+    import csv
+
+    from test_cli import run
+
+    import voxrender.object.pipeline as pipeline
+    import voxrender.qc.study as study
+
+    test_agreement_matches_structures_by_name_and_reports_one_sided_ones(tmp_path)     # writes the files
+    expected = agreement(tmp_path / "ct.nii.gz", tmp_path / "test", tmp_path / "reference")
+    reads = []
+
+    def counted(source, image, read=None):
+        reads.append(Path(source).name)
+        return read_labels(source, image, read)
+
+    read_labels = pipeline.read_labels
+    monkeypatch.setattr(pipeline, "read_labels", counted)
+    monkeypatch.setattr(study, "read_labels", counted)
+    common = ("--labels-from", tmp_path / "test", "--reference", tmp_path / "reference")
+    result = run("sheet", tmp_path / "ct.nii.gz", *common, "--slices", "axial", "--views", "anterior", "--size",
+                 "32", "-o", tmp_path / "sheet.png")
+    assert result.exit_code == 0, result.output
+    assert sorted(reads) == ["reference", "test"], reads
+    for runs in (["test", "reference"], ["reference"]):              # encoded now; then from the cache
+        reads.clear()
+        result = run("batch", tmp_path / "ct.nii.gz", *common, "--size", "32", "--jobs", "1", "-o", tmp_path / "out")
+        assert result.exit_code == 0, result.output
+        assert sorted(reads) == sorted(runs + ["test"] * (runs == ["reference"])), reads
+        with open(tmp_path / "out" / "agreement.csv", newline="") as file:
+            dice = {row["name"]: float(row["dice"]) for row in csv.DictReader(file)}
+        assert dice == pytest.approx({row["name"]: row["dice"] for row in expected})

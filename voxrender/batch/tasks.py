@@ -31,14 +31,19 @@ def encode_task(item, cache_dir, out_dir=None):
     """Phase 1: the cached ``.vxs`` of ``item`` (made now if absent), with its grey values when its pictures are
     projections, and its QC sheet when wanted and not there yet; with a reference, the agreement of its labels
     (``report["agreement"]``, :data:`voxrender.review.agreement.COLUMNS`); returns a small report dict.
+
+    A study encoded now with a reference is read and paired with its labels once, for both
+    (:meth:`voxrender.review.agreement.Comparison.of_study`); one already in the cache is read for its agreement alone.
     """
-    report = _encode_object(item, cache_dir, out_dir)
+    report, study = _encode_object(item, cache_dir, out_dir)
     if item.reference is None or "error" in report:
         return report
     from ..review.agreement import COLUMNS, Comparison
 
     try:
-        rows = Comparison(item.input, item.prepare.labels.source, item.reference, item.read).metrics(item.tolerance_mm)
+        comparison = Comparison.of_study(study, item.reference, item.read) if study is not None else \
+            Comparison(item.input, item.prepare.labels.source, item.reference, item.read)
+        rows = comparison.metrics(item.tolerance_mm)
     except InputError as exc:
         return {"input": item.input, "error": str(exc)}
     except Exception as exc:  # a bug must not stop the other inputs; it is reported in the summary
@@ -47,9 +52,8 @@ def encode_task(item, cache_dir, out_dir=None):
     return {**report, "agreement": [{k: row[k] for k in COLUMNS} for row in rows]}
 
 
-
 def _encode_object(item, cache_dir, out_dir=None):
-    """:func:`encode_task`'s object, grey values and sheet."""
+    """:func:`encode_task`'s object, grey values and sheet: its report, and the study when one was read."""
     started = time.perf_counter()
     sheet = item.sheet_path(out_dir) if item.makes_sheet and out_dir is not None else None
     try:
@@ -58,16 +62,17 @@ def _encode_object(item, cache_dir, out_dir=None):
             if item.needs_grey:
                 raise InputError(f"{item.input} is an encoded object, which keeps no grey values to project; give "
                                  "the slice stack it was made from")
-            return {"input": item.input, "segments": item.input, "seconds": {"load": 0.0, "prepare": 0.0}}
+            return {"input": item.input, "segments": item.input, "seconds": {"load": 0.0, "prepare": 0.0}}, None
         with_octree = method_record(item.method).octree          # kept in the cache: built once, not per view
         key = cache_key(item.input, item.read, item.prepare)
         target = Path(cache_dir) / f"{key}.{'vxo' if with_octree else 'vxs'}"
         report = {"input": item.input, "segments": str(target), "seconds": {"load": 0.0, "prepare": 0.0}}
         grey_kept = not item.needs_grey or all(p.is_file() for p in study_files(target))
         if is_intact(target) and grey_kept and not make_sheet:      # a damaged or tampered entry is made again
-            return {**report, "cached": True, "key_seconds": time.perf_counter() - started}
+            return {**report, "cached": True, "key_seconds": time.perf_counter() - started}, None
         study = None
-        if item.needs_grey or make_sheet:
+        # a study holds the labels paired with the image, which the agreement reuses (a study is never binned)
+        if item.needs_grey or make_sheet or (item.reference is not None and item.prepare.bin == 1):
             from ..qc.study import load_study
 
             study = load_study(item.input, item.read, item.prepare)
@@ -86,13 +91,13 @@ def _encode_object(item, cache_dir, out_dir=None):
                 output.write_png(sheet, qc_sheet(study, item.options, item.sheet_views(), item.slices,
                                                  title=f"{item.name}: {item.input}"))
         except OSError as exc:          # the disk refused, not the input nor voxrender
-            return _write_failure({"input": item.input}, exc)
-        return {**report, "seconds": loaded.seconds, "cached": False}
+            return _write_failure({"input": item.input}, exc), None
+        return {**report, "seconds": loaded.seconds, "cached": False}, study
     except InputError as exc:
-        return {"input": item.input, "error": str(exc)}
+        return {"input": item.input, "error": str(exc)}, None
     except Exception as exc:  # a bug must not stop the other inputs; it is reported in the summary
         return {"input": item.input, "error": f"internal error: {type(exc).__name__}: {exc}",
-                "traceback": traceback.format_exc()}
+                "traceback": traceback.format_exc()}, None
 
 
 NO_SPACE = (errno.ENOSPC, errno.EDQUOT)

@@ -217,11 +217,7 @@ def sheet_command(inputs, output_path, views, view_list, angles, methods, per_la
         if reference is not None:
             from ..review.agreement import Comparison
 
-            if not options.get("labels_from"):
-                raise InputError("a reference is held against labels: give them with --labels-from",
-                                 parameter="reference")
-            rgb = _with_metrics(rgb, Comparison(inputs[0], options["labels_from"], reference, read)
-                                .metrics(tolerance_mm))
+            rgb = _with_metrics(rgb, Comparison.of_study(study, reference, read).metrics(tolerance_mm))
         from ..outputs.secondary_capture import selection_words
 
         shows = [f"QC sheet of {', '.join(v.label for v in chosen)}"]

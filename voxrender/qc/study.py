@@ -66,6 +66,11 @@ class Study:
     envelopes : tuple of int
         The labels of the patient's outline (BODY, External), outlined in slices, never filled
         (:func:`voxrender._shared.label_sets.envelopes`).
+    image, paired : Volume, optional
+        The image as read (before the crop) and, when the labels come from a label source paired with it, that
+        source placed on its grid, all its labels, with its reader's meta: what an agreement with a reference
+        compares (:meth:`voxrender.review.agreement.Comparison.of_study`), so the source is paired once.  Not
+        saved.
     """
 
     volume: io.Volume
@@ -80,6 +85,8 @@ class Study:
     codes: np.ndarray | None = None
     sets: dict | None = None
     envelopes: tuple = ()
+    image: io.Volume | None = field(default=None, repr=False)
+    paired: io.Volume | None = field(default=None, repr=False)
 
     @property
     def step(self):
@@ -230,7 +237,7 @@ def load_study(path, read=None, prepare=None, progress=None, encode=True, normal
     volume = read.read(path, progress)
     seconds = {"load": time.perf_counter() - started}
     selection, labels, table, overlaps, own = prepare.labels, None, None, [], None
-    codes, sets, envelopes = None, None, ()
+    codes, sets, envelopes, paired = None, None, (), None
     if selection is not None:
         if selection.source is None:                       # the input is the label map
             labels_volume = volume
@@ -243,6 +250,7 @@ def load_study(path, read=None, prepare=None, progress=None, encode=True, normal
             labels_volume = replace(volume, values=on_image_grid(found, volume, name)[0],
                                     meta={**found.meta, "source": str(name), **where})
             prepare = replace(prepare, labels=replace(selection, source=labels_volume))
+            paired = labels_volume
         codes = prep.crop(labels_volume.values, prepare.crop)
         labels, own = _chosen(codes, selection.chosen, labels_volume, prepare.crop is not None)
         sets = labels_volume.meta.get("label_sets") or None
@@ -259,7 +267,7 @@ def load_study(path, read=None, prepare=None, progress=None, encode=True, normal
     voxel, grid = prep.cubic_grid(part.shape, part.spacing, prepare.voxel, prepare.resample)   # the object's grid
     return Study(part, labels, table, encoded, float(voxel), grid is not None, overlaps,
                  has_grey=selection is None or selection.source is not None, own_voxels=own, codes=codes, sets=sets,
-                 envelopes=envelopes)
+                 envelopes=envelopes, image=volume, paired=paired)
 
 
 def _chosen(values, chosen, source, cropped):

@@ -78,6 +78,17 @@ class Comparison:
         self.structures = [_structures(boxes, meta) for boxes, (_, meta) in zip(self.boxes, self.sides, strict=True)]
         self.keys = list(dict.fromkeys([*self.structures[1], *self.structures[0]]))   # the reference's order first
 
+    @classmethod
+    def of_study(cls, study, reference, read=None):
+        """The comparison of a :class:`~voxrender.qc.study.Study`'s labels with ``reference``: its image and the label
+        source it already paired with it (:attr:`~voxrender.qc.study.Study.paired`, all its labels, before any crop),
+        so that neither is read or placed again; only the reference is.
+        """
+        if study.paired is None:
+            raise InputError("a reference is held against labels: give them with --labels-from (labels_from)",
+                             parameter="reference")
+        return cls(study.image, study.paired, reference, read)
+
     def masks(self, key):
         """The structure ``key``'s box (slices of the image's grid) and its test and reference masks in it."""
         found = [s.get(key) for s in self.structures]
