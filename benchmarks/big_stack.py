@@ -7,8 +7,10 @@
 trabecular solid, grey values smooth across the surface as a scanner's partial volume makes them, and mild noise.
 :func:`bench_big_stack` then measures, each in a fresh process after dropping the page cache (so that every one
 reads from disk): a cold ``cat`` of the slice files, ``voxrender encode`` of the folder (plain, ``--bin 2`` and
-``--jobs 2``), and ``voxrender render --method ftb --size 1024`` of the resulting ``.vxs``; wall seconds, peak
-RSS (``/usr/bin/time -f %M``), the ratio of each encode to ``cat``, and the issue's targets met or missed.
+``--jobs 2``), ``voxrender render --method ftb --size 1024`` of the resulting ``.vxs``, then its levels of detail
+added (``encode --levels``) and pictures of 1024 and 512 pixels drawn from them; wall seconds, peak RSS
+(``/usr/bin/time -f %M``), the ratio of each encode to ``cat`` (of the levels, the file's growth), and the issues'
+targets met or missed.
 
 The stack's grey values (the constants below):
 
@@ -58,6 +60,9 @@ RSS_TARGET_MB = 2000.0   # 2 GB, encode and ftb
 ENCODE_TARGET = 3.0      # encode seconds <= 3 x cold cat (moonshot 1.5 x)
 ENCODE_MOONSHOT = 1.5
 FTB_TARGET_S = 5.0
+LEVEL_TARGETS_S = {1024: 5.0, 512: 2.0}   # a picture from the .vxs's levels of detail: seconds, at its size
+LEVEL_RSS_MB = 1000.0    # and in 1 GB
+LEVEL_GROWTH = 0.15      # the levels make the file at most 15 % larger
 DROP_CACHES = Path("/proc/sys/vm/drop_caches")
 TIME = "/usr/bin/time"
 CAT_METHOD = "find FOLDER -name '*.tif' -print0 | sort -z | xargs -0 cat > /dev/null (one cat process)"
@@ -309,6 +314,13 @@ def commands(folder, out):
         result[name] = (_cli("encode", folder, "-o", vxs, "--threshold", threshold, *options), shown)
     result["ftb 1024^2"] = (_cli("render", out / "encode.vxs", "--method", "ftb", "--size", 1024,
                                  "-o", out / "ftb.png"), "voxrender render encode.vxs --method ftb --size 1024")
+    # levels of detail (issue 35): added to the encoded file, then the pictures drawn from the level that suits them
+    result["encode --levels"] = (_cli("encode", out / "encode.vxs", "--levels", "-o", out / "levels.vxs"),
+                                 "voxrender encode encode.vxs --levels -o levels.vxs")
+    for size in LEVEL_TARGETS_S:
+        result[f"ftb {size}^2, levels"] = (
+            _cli("render", out / "levels.vxs", "--method", "ftb", "--size", size, "-o", out / f"levels-{size}.png"),
+            f"voxrender render levels.vxs --method ftb --size {size}")
     return result
 
 
@@ -351,6 +363,10 @@ def bench_big_stack(side=None, repeat=1, drop_caches=True, progress=_no_progress
             for spare in out.glob("encode-*.vxs"):      # only encode.vxs is rendered: keep the disk for the stack
                 spare.unlink()
     rows = [_row(name, shown, runs[name]) for name, (_command, shown) in commands(folder, out).items()]
+    sizes = [(out / name).stat().st_size if (out / name).is_file() else None for name in ("encode.vxs", "levels.vxs")]
+    for row in rows:
+        if row["name"] == "encode --levels" and None not in sizes:
+            row["growth"] = sizes[1] / sizes[0]
     cat = rows[0]["seconds"]
     for row in rows:
         row["targets"] = _targets(row, cat)
@@ -373,6 +389,15 @@ def _targets(row, cat_seconds):
         return {}
     small = row["peak_mb"] is not None and row["peak_mb"] <= RSS_TARGET_MB
     rss = f"RSS <= {RSS_TARGET_MB / 1000:g} GB"
+    if row["name"] == "encode --levels":
+        growth = row.get("growth")
+        return {f"file <= {1 + LEVEL_GROWTH:g} x": (growth is not None and growth <= 1 + LEVEL_GROWTH)
+                if row["ok"] else None}
+    if row["name"].endswith("levels"):
+        target = LEVEL_TARGETS_S[int(row["name"].split()[1].split("^")[0])]
+        light = row["peak_mb"] is not None and row["peak_mb"] <= LEVEL_RSS_MB
+        return {goal: (met if row["ok"] else None) for goal, met in
+                {f"<= {target:g} s": row["seconds"] <= target, f"RSS <= {LEVEL_RSS_MB / 1000:g} GB": light}.items()}
     if row["name"].startswith("encode"):
         ratio = row["ratio_to_cat"] = row["seconds"] / cat_seconds if cat_seconds else None
         goals = {rss: small, f"<= {ENCODE_TARGET:g} x cat": ratio is not None and ratio <= ENCODE_TARGET,
@@ -397,7 +422,8 @@ def markdown_lines(result):
              "", "| command | wall s | peak RSS MB | / cat | targets |", "|---|---|---|---|---|"]
     for row in result["rows"]:
         peak = "-" if row["peak_mb"] is None else f"{row['peak_mb']:,.0f}"
-        ratio = f"{row['ratio_to_cat']:.2f}" if row.get("ratio_to_cat") is not None else "-"
+        ratio = f"{row['ratio_to_cat']:.2f}" if row.get("ratio_to_cat") is not None else \
+            f"file {row['growth']:.3f} x" if row.get("growth") is not None else "-"
         if not row["ok"]:
             targets = f"failed: {row['error']}"
         else:

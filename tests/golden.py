@@ -35,8 +35,13 @@ CASES = {
                     "--legend", "--size", "128"],
     "head-mip": ["render", "{data}/vhf_head", "--threshold", "300", "--projection", "mip", "--alpha", "30", "--beta",
                  "10", "--size", "128"],
+    # levels of detail: vhf_head's skin encoded with --levels, drawn from its 2x level, and at a size whose pixel
+    # is eight voxels, which the level 8 times coarser suits
+    "head-level1": ["render", "{samples}/head-levels.vxs", "--level", "1", "--alpha", "90", "--beta", "30",
+                    "--size", "160"],
+    "head-level-auto": ["render", "{samples}/head-levels.vxs", "--alpha", "90", "--beta", "30", "--size", "56"],
 }
-REAL_DATA = {"headsq-bone", "head-labels", "head-seg", "head-slices", "head-mip"}
+REAL_DATA = {"headsq-bone", "head-labels", "head-seg", "head-slices", "head-mip", "head-level1", "head-level-auto"}
 
 
 def head_labels(samples, data):
@@ -80,6 +85,15 @@ def head_seg(samples, data):
     shutil.rmtree(copies)
 
 
+def head_levels(samples, data):
+    """vhf_head's skin (-300 HU) encoded with its levels of detail into ``samples``, once."""
+    target = Path(samples) / "head-levels.vxs"
+    if not target.is_file():
+        result = CliRunner().invoke(main, ["encode", str(Path(data) / "vhf_head"), "--threshold", "-300", "--levels",
+                                           "-o", str(target)])
+        assert result.exit_code == 0, result.output
+
+
 def render_case(name, output, samples, data=DATA):
     """Run the case's command, writing its picture to ``output``."""
     args = [a.format(samples=samples, data=data) for a in CASES[name]] + ["-o", str(output)]
@@ -89,6 +103,8 @@ def render_case(name, output, samples, data=DATA):
         head_labels(samples, data)
     if name == "head-seg":
         head_seg(samples, data)
+    if name.startswith("head-level"):
+        head_levels(samples, data)
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 0, (args, result.output)
 

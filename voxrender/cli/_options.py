@@ -108,7 +108,7 @@ def check_vxs_options(path, options):
     if not is_segments_file(path):
         return
     given = [flag(name) for name in ("threshold", "preset", "label", "labels", "labels_from", "crop", "voxel", "raw",
-                                     "spacing", "series", "frame", "level", "orientation")
+                                     "spacing", "series", "frame", "orientation")
              if options.get(name) not in (None, False)] + ["--bin"] * (options.get("bin", 1) != 1)
     if given:
         raise InputError(f"{path} is already encoded, so {', '.join(given)} cannot apply; "
@@ -149,8 +149,8 @@ def read_flags(command):
                           "order (default: the longest)."),
         click.option("--frame", type=int, metavar="N", help="The volume to read from a 4-D NIfTI or NRRD (from 0)."),
         click.option("--level", type=click.IntRange(0), metavar="N",
-                     help="The level of a multiscale OME-Zarr, 0 the finest (default: for render, the finest that "
-                          "suits the picture; else the finest)."),
+                     help="The level of a multiscale OME-Zarr, or of a .vxs encoded with --levels, 0 the finest "
+                          "(default: for render, the one that suits the picture; else the finest)."),
         click.option("--orientation", metavar="CODE",
                      help="Orientation of an input whose header has none, e.g. RAS or LPI: the sides voxel x, y and "
                           "z grow toward."),

@@ -26,8 +26,12 @@ from ._options import check_vxs_options, input_flags, max_memory_flag, prep_flag
               help="Worker processes encoding slabs of the stack at once.")
 @click.option("--scheduler", metavar="ADDRESS|local",
               help="Encode the slabs on a Dask cluster ('local' starts one here); its workers read INPUT's path.")
+@click.option("--levels", is_flag=True,
+              help="Also keep the object at 2, 4 and 8 times coarser voxels (a voxel in them when any of its voxels "
+                   "is), which render draws pictures coarser than the voxels from (render --level). Adds them to a "
+                   ".vxs given as INPUT.")
 @max_memory_flag
-def encode_command(input_path, output_path, as_octree, jobs, scheduler, max_memory, **options):
+def encode_command(input_path, output_path, as_octree, levels, jobs, scheduler, max_memory, **options):
     """Select the object of INPUT and save its run-length segments (.vxs), with its octrees (.vxo).
 
     A stack larger than --max-memory is read a slab at a time (streamed), in bounded memory.
@@ -35,14 +39,14 @@ def encode_command(input_path, output_path, as_octree, jobs, scheduler, max_memo
     suffix = ".vxo" if as_octree else ".vxs"
     if output_path.suffix.lower() != suffix:
         raise InputError(f"the output {output_path} must end in {suffix}")
-    if is_segments_file(input_path) and not as_octree:
-        raise InputError(f"{input_path} is already encoded")
+    if is_segments_file(input_path) and not (as_octree or levels):
+        raise InputError(f"{input_path} is already encoded; --octree or --levels add to it")
     check_vxs_options(input_path, options)
     check_writable(output_path)
     from ..object import stream
 
     loaded, how = stream.encode_file(input_path, output_path, read_options_of(options), prep_options_of(options),
-                              octree=as_octree, jobs=jobs, scheduler=scheduler,
+                              octree=as_octree, levels=levels, jobs=jobs, scheduler=scheduler,
                               max_memory=parse.memory(max_memory) if max_memory else None, progress=progress)
     s = loaded.segments
     nz, ny, nx = s.shape
@@ -53,6 +57,8 @@ def encode_command(input_path, output_path, as_octree, jobs, scheduler, max_memo
         chosen.append(f"binned by {s.meta['binned']}")
     if how:
         chosen.append(f"streamed ({how})")
+    if s.levels:
+        chosen.append("levels " + ", ".join(f"{level.meta['level_factor']}x" for level in s.levels))
     click.echo(f"{output_path}: {nx}x{ny}x{nz} voxels, {s.voxel_count} in the object, {s.segment_count} segments"
                + "".join(f", {c}" for c in chosen) + f", {loaded.seconds['encode']:.1f} s")
     if as_octree:

@@ -34,6 +34,12 @@ def info_command(input_path, as_json, **options):
             for pair in value:
                 inside = f", {pair['inside']} lies inside the other" if pair.get("inside") else ""
                 click.echo(f"  {' and '.join(pair['names'])}: {pair['voxels']} voxels{inside}")
+        elif key == "levels":                                  # a line a level of detail
+            click.echo(f"levels: {len(value)} besides the voxels' own (render --level N; by default the picture's)")
+            for row in value:
+                click.echo(f"  {row['level']}: voxels {row['voxel_edge']} times larger, "
+                           f"{'x'.join(map(str, row['dimensions_xyz']))}, {row['object_voxels']} in the object, "
+                           f"{row['segments']} segments")
         elif isinstance(value, list) and value and all(isinstance(v, str) for v in value):
             click.echo(f"{key.replace('_', ' ')}:")
             for line in value:

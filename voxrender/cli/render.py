@@ -8,10 +8,10 @@ import click
 
 from .._render import octree_for
 from ..batch import parse
-from ..object.pipeline import level_for_picture, load_segments
+from ..object.pipeline import is_segments_file, level_for_picture, load_segments
 from ..outputs import Outputs, about, write_outputs
 from ..outputs.output_kinds import LABEL_ROWS, LABELS, OUTPUTS
-from ..pictures import picture
+from ..pictures import level_for, picture
 from ..space.view import PRESETS
 from ._main import main, progress
 from ._options import (
@@ -65,11 +65,22 @@ def render_command(input_path, output_path, **options):
         loaded = study.encoded
     else:
         loaded = load_segments(input_path, read, prep_options_of(options), progress)
+    view = render_options.view(*angles)
+    if loaded.segments.levels:         # a .vxs with levels of detail: --level, or the one that suits the picture
+        level, view = level_for(loaded.segments, view, render_options, read.level)
+        if level:
+            drawn = loaded.segments.at_level(level)
+            click.echo(f"note: drawn from level {level} of {input_path}: voxels {drawn.meta['level_factor']} times "
+                       f"larger, {'x'.join(map(str, drawn.shape[::-1]))}" +
+                       ("" if read.level is not None else ", the coarsest no larger than a pixel"), err=True)
+        loaded = loaded.at_level(level)
+    elif read.level and is_segments_file(input_path):
+        loaded.segments.at_level(read.level)               # refused: the file keeps no levels
     check_label_options(loaded.segments, {"colours": options["colours"], "legend": options["legend"],
                                            **{name: path for name, path in outputs.wanted().items()
                                               if OUTPUTS[name].needs in (LABELS, LABEL_ROWS)}})
     max_memory = parse.memory(options["max_memory"]) if options["max_memory"] else None
-    result = picture(loaded.segments, render_options.view(*angles), render_options, progress,
+    result = picture(loaded.segments, view, render_options, progress,
                      octree_for(render_options.method, loaded, max_memory), study=study)
     result.seconds = {**loaded.seconds, **result.seconds}
     write_outputs(result, outputs, {**about(loaded.segments), **joins})   # an empty picture was warned of

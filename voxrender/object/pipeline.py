@@ -142,6 +142,7 @@ class Encoded:
     segments: segments.Segments
     seconds: dict = field(default_factory=dict)
     _octree: object = field(default=None, repr=False)
+    _levels: dict = field(default_factory=dict, repr=False)        # {level: Encoded}, made once
 
     def octree(self, max_memory=None):
         """The region octree of the object (built now if it has not been); a build whose estimated memory is over
@@ -154,18 +155,34 @@ class Encoded:
             self._octree = build_from_segments(self.segments)
         return self._octree
 
+    def at_level(self, level):
+        """The object at a level of detail (:meth:`~voxrender.object.segments.Segments.at_level`), as an
+        :class:`Encoded` of its own that builds its own octree when asked; itself at level 0.
+        """
+        if not level:
+            return self
+        if level not in self._levels:
+            self._levels[level] = Encoded(self.segments.at_level(level), dict(self.seconds))
+        return self._levels[level]
+
     @property
     def has_octree(self):
         """Whether the region octree is at hand (read from the file, or built)."""
         return self._octree is not None
 
-    def save(self, path, octree=False):
+    def save(self, path, octree=False, levels=False):
         """Write the object to a ``.vxs`` file; with ``octree``, also its region octree, linear octree and the
         face adjacency of its leaves (built now if they have not been), so that octree methods rendering from
-        the file pay only their traversal.
+        the file pay only their traversal; with ``levels``, also the object at 2, 4 and 8 times coarser voxels
+        (:mod:`voxrender.object.levels`, built now if it does not keep them), which pictures coarser than its
+        voxels are drawn from.  Levels it keeps are kept.
         """
         from .octree import sections
 
+        if levels and not self.segments.levels:
+            from .levels import build_levels
+
+            self.segments.levels = build_levels(self.segments)
         vxs.save(self.segments, path, sections(self.octree()) if octree else None)
 
 

@@ -45,6 +45,9 @@ class Segments:
         The grey-level normals of the surface band (:mod:`voxrender.object.normals`), kept in the ``.vxs``.
     labels : ndarray of uint16, optional
         One label per run, for a multi-label object (:func:`encode_labels`); ``None`` for a single object.
+    levels : tuple of Segments
+        The object at 2, 4 and 8 times coarser voxels, when kept (:mod:`voxrender.object.levels`):
+        :meth:`at_level` gives one.
 
     Examples
     --------
@@ -67,6 +70,7 @@ class Segments:
     meta: dict = field(default_factory=dict)
     normals: object = field(default=None, repr=False, compare=False)   # SurfaceNormals, kept in the .vxs
     labels: np.ndarray | None = field(default=None, repr=False)      # uint16, one per run (multi-label objects)
+    levels: tuple = field(default=(), repr=False, compare=False)      # coarser Segments (object.levels)
 
     @property
     def segment_count(self):
@@ -78,6 +82,19 @@ class Segments:
         """How many voxels the object has."""
         # summed apart: no int64 copies of the runs, which are as large as the file for a big object
         return int(np.sum(self.ends, dtype=np.int64)) - int(np.sum(self.starts, dtype=np.int64)) + self.segment_count
+
+    def at_level(self, level):
+        """The object at ``level``: itself at 0, else the ``level``-th of its coarser :attr:`levels`.
+
+        >>> encode(np.ones((2, 2, 2), bool)).at_level(0).shape
+        (2, 2, 2)
+        """
+        if level == 0:
+            return self
+        if not (isinstance(level, (int, np.integer)) and 0 < level <= len(self.levels)):
+            kept = f"levels 0 to {len(self.levels)}" if self.levels else "only level 0 (encode --levels adds more)"
+            raise InputError(f"level {level!r}: the object keeps {kept}", parameter="level")
+        return self.levels[level - 1]
 
     def label_voxels(self):
         """How many voxels each label has, ``{label: count}``, by label; ``{}`` for a single object.

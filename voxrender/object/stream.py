@@ -531,12 +531,14 @@ def _voxel_count(starts, ends):
                for s, e in zip(_chunks(starts), _chunks(ends), strict=True))
 
 
-def encode_file(path, output, read=None, prepare=None, *, octree=False, jobs=1, scheduler=None, max_memory=None,
-                progress=None):
+def encode_file(path, output, read=None, prepare=None, *, octree=False, levels=False, jobs=1, scheduler=None,
+                max_memory=None, progress=None):
     """Encode the input at ``path`` into ``output`` (``.vxs``; ``.vxo`` with the octrees, ``octree=True``): a slab
     at a time (:func:`encode_stack`) when reading it whole would take more than ``max_memory`` bytes (default: half
     the machine's memory) or when ``jobs`` or ``scheduler`` share the work out, else in memory.  Either way the
-    file is the same.
+    file is the same.  With ``levels``, the file also keeps the object at 2, 4 and 8 times coarser voxels
+    (:mod:`voxrender.object.levels`), made from its runs.  An input that is a ``.vxs`` already gets what is asked
+    added.
 
     Returns
     -------
@@ -552,17 +554,18 @@ def encode_file(path, output, read=None, prepare=None, *, octree=False, jobs=1, 
     started = time.perf_counter()
     output, how = Path(output), None
     streamed = not is_segments_file(path) and _streams(path, read, prepare, max_memory, jobs > 1 or scheduler)
-    # the octrees are built from the streamed .vxs, which is kept beside the output only until then
-    objects = output.with_name(f".{output.name}.streamed.vxs") if streamed and octree else output
+    # the octrees and levels are built from the streamed .vxs, which is kept beside the output only until then
+    added = octree or levels
+    objects = output.with_name(f".{output.name}.streamed.vxs") if streamed and added else output
     try:
         if streamed:
             how = encode_stack(path, objects, read, prepare, jobs=jobs, scheduler=scheduler, progress=progress)["how"]
         loaded = load_segments(objects) if streamed else load_segments(path, read, prepare, progress)
         if octree:
             loaded.octree(max_memory)                       # refused here if its build would pass max_memory
-        if octree or not streamed:
+        if added or not streamed:
             with room_for(output):
-                loaded.save(output, octree=octree)
+                loaded.save(output, octree=octree, levels=levels)
             loaded = load_segments(output)                  # mapped from the file, as a renderer will take it
     finally:
         if objects != output:

@@ -31,19 +31,35 @@ _ALIGN = 64
 def save(segments, path, sections=None):
     """Write ``segments`` to a ``.vxs`` file (atomically), with further named arrays ``sections`` (e.g. the
     region octree's, :func:`voxrender.object.octree.sections`), memory-mapped again by :func:`read_sections`.
+    Its coarser :attr:`~voxrender.object.segments.Segments.levels` go with it, their arrays named ``level1.starts``
+    and so on, their grids and what their meta adds in ``meta["levels"]``.
     """
+    arrays = _object_arrays(segments)
+    arrays.update({name: np.asarray(array).ravel() for name, array in (sections or {}).items()})
+    meta = dict(segments.meta)
+    if segments.normals is not None:
+        meta["normals_from"] = segments.normals.source
+    if segments.levels:
+        meta["levels"] = []
+        for k, level in enumerate(segments.levels, 1):
+            own = {**level.meta, **({"normals_from": level.normals.source} if level.normals is not None else {})}
+            meta["levels"].append({"shape": list(level.shape), "spacing": list(level.spacing),
+                                   "meta": {key: value for key, value in own.items() if meta.get(key) != value}})
+            arrays.update({f"level{k}.{name}": array for name, array in _object_arrays(level).items()})
+    write_sections(path, segments.shape, segments.spacing, meta, arrays)
+
+
+def _object_arrays(segments):
+    """The arrays of one object: its runs, their labels, and its normals."""
     arrays = {"offsets": np.asarray(segments.offsets, "<i8"), "starts": np.asarray(segments.starts, "<i4"),
               "ends": np.asarray(segments.ends, "<i4")}
-    arrays.update({name: np.asarray(array).ravel() for name, array in (sections or {}).items()})
     if segments.labels is not None:
         arrays["labels"] = np.asarray(segments.labels, "<u2")
-    meta = dict(segments.meta)
     if segments.normals is not None:
         index = np.asarray(segments.normals.index)          # int32 when the volume allows (surface_normals)
         arrays.update(normal_index=np.asarray(index, f"<i{index.dtype.itemsize}"),
                       normal_packed=np.asarray(segments.normals.packed, "<i2").ravel())
-        meta["normals_from"] = segments.normals.source
-    write_sections(path, segments.shape, segments.spacing, meta, arrays)
+    return arrays
 
 
 @dataclass(frozen=True)
@@ -143,9 +159,32 @@ def load(path):
 
 def from_sections(header, arrays, path):
     """The :class:`Segments` of a ``.vxs`` file's header and arrays (:func:`read_sections`), checked: runs that
-    leave their grid or an index that does not add up is a damaged file, not a renderer's error later.
+    leave their grid or an index that does not add up is a damaged file, not a renderer's error later.  The
+    coarser levels it keeps are checked alike and hang on its ``levels``.
     """
-    shape, spacing, meta = header.get("shape"), header.get("spacing"), header.get("meta", {})
+    meta = header.get("meta", {})
+    if not isinstance(meta, dict):
+        raise _damaged(path, "its meta is not a table of names")
+    kept = meta.get("levels") or []
+    if not isinstance(kept, list) or not all(isinstance(level, dict) for level in kept):
+        raise _damaged(path, "its levels are not a list of grids")
+    found = _object_of(header.get("shape"), header.get("spacing"),
+                       {key: value for key, value in meta.items() if key != "levels"}, arrays, path)
+    plain = {key: value for key, value in meta.items() if key not in ("levels", "normals_from")}
+    levels = []
+    for k, level in enumerate(kept, 1):
+        prefix = f"level{k}."
+        own = {name[len(prefix):]: array for name, array in arrays.items() if name.startswith(prefix)}
+        differs = level.get("meta") or {}
+        if not isinstance(differs, dict):
+            raise _damaged(path, f"the meta of its level {k} is not a table of names")
+        levels.append(_object_of(level.get("shape"), level.get("spacing"), {**plain, **differs}, own, path))
+    found.levels = tuple(levels)
+    return found
+
+
+def _object_of(shape, spacing, meta, arrays, path):
+    """One checked object of a file (its own, or a level's): see :func:`from_sections`."""
     if not (isinstance(shape, list) and len(shape) == 3 and all(type(n) is int and n > 0 for n in shape)):
         raise _damaged(path, f"its shape {shape!r} is not three positive sizes")
     shape = tuple(shape)

@@ -9,6 +9,7 @@ _FACE = {
     "picture": "_picture",
     "RenderOptions": "_picture",
     "label_table": "_picture",
+    "level_for": "_picture",
     "PROJECTIONS": "kinds",
     "SURFACE": "kinds",
     "project": "_project",

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -21,6 +21,8 @@ from . import shade
 from .kinds import PROJECTIONS, SURFACE
 from .shade import HEADLIGHT, SHADINGS, light_direction
 
+# The most runs whose box a picture's level of detail is chosen by (the finest level with no more).
+_FRAMING_RUNS = 1 << 20
 # The views that see a slab thin along an axis face-on.
 FACE_ON = {"x": ("left", "right"), "y": ("anterior", "posterior"), "z": ("inferior", "superior")}
 
@@ -226,6 +228,60 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
 
         result.rgb = draw_legend(rgb, [(_caption(v), v["colour"]) for v in result.visible_labels()])
     return result
+
+
+def level_for(segments, view, options=None, level=None):
+    """The level of detail a picture of ``segments`` is drawn from, and its view in that level's voxels.
+
+    ``level`` 0 is the object's own voxels, ``k`` its ``k``-th coarser level (:mod:`voxrender.object.levels`,
+    kept by ``encode --levels``); ``None`` chooses the coarsest whose voxel is no larger than a pixel of the
+    picture (the full resolution when the object keeps no levels, or with clip limits, which are given in its own
+    voxels).  A scale the view sets (pixels per voxel of the full resolution) becomes that of the level's voxels.
+
+    Parameters
+    ----------
+    segments : Segments
+    view : View
+    options : RenderOptions, optional
+        Their ``fit`` frames the picture when the view sets no scale.
+    level : int, optional
+
+    Returns
+    -------
+    level : int
+    view : View
+
+    Examples
+    --------
+    >>> from voxrender.object.levels import build_levels
+    >>> from voxrender.object.segments import encode
+    >>> ball = encode(np.ones((64, 64, 64), bool)); ball.levels = build_levels(ball)
+    >>> level_for(ball, View(size=(16, 16)))[0], level_for(ball, View(size=(256, 256)))[0]
+    (2, 0)
+    >>> level_for(ball, View(size=(64, 64), scale=0.5))
+    (1, View(alpha=0.0, beta=0.0, gamma=0.0, size=(64, 64), scale=1.0, centre=(0.0, 0.0)))
+    """
+    options = options or RenderOptions()
+    if level is None:
+        if not segments.levels or options.clip is not None:
+            return 0, view
+        from ..object.levels import choose_level
+
+        # the box of the finest level quick to scan (the object's own, when small): its coarse voxels' middles
+        framer = next((one for one in (segments, *segments.levels) if one.segment_count <= _FRAMING_RUNS),
+                      segments.levels[-1])
+        factor = framer.meta.get("level_factor", 1) if framer is not segments else 1
+        box = framing_box(framer)
+        middle = (factor - 1) / 2
+        fine_box = None if box is None else tuple((lo * factor + middle, hi * factor + middle) for lo, hi in box)
+        scale = view.fitted(segments.shape, fine_box, options.fit).scale
+        level = choose_level([one.meta["level_factor"] for one in segments.levels], 1 / scale)
+    drawn = segments.at_level(level)
+    if level and options.clip is not None:
+        raise InputError("clip limits are given in the object's own voxels: draw them at level 0",
+                         parameter="level")
+    factor = drawn.meta.get("level_factor", 1) if level else 1
+    return level, view if view.scale is None else replace(view, scale=view.scale * factor)
 
 
 def _label_rows(segments, table, pixels=None):

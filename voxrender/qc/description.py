@@ -73,12 +73,18 @@ def describe(path, read=None, prepare=None, progress=None):
 
 
 def _describe_encoded(path):
-    """An encoded object: its grid, voxels and segments, what it was selected by, and its octree when it keeps one."""
+    """An encoded object: its grid, voxels and segments, what it was selected by, and its levels of detail and
+    octree when it keeps them.
+    """
     loaded = load_segments(path)
     s = loaded.segments
     summary = {"input": str(path), "format": path.suffix.lower()[1:], "dimensions_xyz": list(s.shape[::-1]),
                "spacing_mm": list(s.spacing), "object_voxels": s.voxel_count, "segments": s.segment_count,
                **{k: v for k, v in s.meta.items() if k != "source"}}
+    if s.levels:
+        summary["levels"] = [{"level": k, "voxel_edge": level.meta["level_factor"],
+                              "dimensions_xyz": list(level.shape[::-1]), "object_voxels": level.voxel_count,
+                              "segments": level.segment_count} for k, level in enumerate(s.levels, 1)]
     if loaded.has_octree:
         counts = loaded.octree().counts()
         summary["octree"] = {"side": 1 << loaded.octree().n, **{k: counts[k] for k in ("black", "white", "grey")},

@@ -85,7 +85,7 @@ class Comparison:
         so that neither is read or placed again; only the reference is.
         """
         if study.paired is None:
-            raise InputError("a reference is held against labels: give them with --labels-from (labels_from)",
+            raise InputError("a reference is held against labels: give the labels too (labels_from)",
                              parameter="reference")
         return cls(study.image, study.paired, reference, read)
 

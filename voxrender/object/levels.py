@@ -1,0 +1,225 @@
+"""Levels of detail: an object's runs at 2, 4 and 8 times coarser voxels, for pictures coarser than its voxels.
+
+A picture of a 2048-voxel object 1024 pixels across shows a voxel in four per pixel: drawn from voxels twice as
+large, it is the same picture at a fraction of the work.  :func:`coarser` bins an object's runs by a factor: a
+coarse voxel is in the object when any of its fine voxels is (so thin structures do not vanish, as they do in the
+mean of ``--bin``), and holds the largest label among them.  It works on the runs, a group of coarse slices at a
+time, never on the voxels, so a memory-mapped ``.vxs`` larger than memory is read once, in order.  A coarse
+voxel's normal is the sum of its fine voxels' grey-level normals, made unit: the gradient of the grey values
+averaged over the coarse voxel, without reading the stack again.  Each level is a :class:`Segments` of its own
+grid, so every method, oracle and the exact reference apply to it unchanged; the ``.vxs`` keeps them
+(:func:`voxrender.object.vxs.save`) and :func:`choose_level` picks one for a picture.
+
+References
+----------
+.. [1] Meagher, D. (1982). Geometric modeling using octree encoding. Computer Graphics and Image Processing 19,
+   129-147: a node of the octree is the union of its eight children, the level of detail its depth.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._shared import label_sets
+from .normals import SurfaceNormals, octahedral_decode, octahedral_encode
+from .segments import Segments, encode_labels, ranges
+
+FACTORS = (2, 4, 8)          # the levels a .vxs keeps beside its own voxels: level k is 2**k times coarser
+_RUNS_AT_ONCE = 1 << 23      # fine runs (or normals) binned in one group of coarse slices
+
+
+def coarser(segments, factor=2):
+    """``segments`` binned by ``factor``: a coarse voxel is in the object when any of its ``factor``³ fine voxels
+    is, with the largest label among them; its normal, the unit sum of theirs.
+
+    Parameters
+    ----------
+    segments : Segments
+        The object, with its normals and labels when it has them (a memory-mapped ``.vxs`` is read a group of
+        slices at a time).
+    factor : int
+        The edge of a coarse voxel in fine voxels; the grid is ``ceil(n / factor)`` along each axis, the spacing
+        ``factor`` times the fine one.
+
+    Returns
+    -------
+    Segments
+        The coarse object; its ``meta`` is the fine one's with ``level_factor``, its voxel's edge in voxels of the
+        full resolution, and, of labels, the full resolution's voxels and mL of each (``label_voxels``,
+        ``label_ml``), which its tables show.
+
+    Examples
+    --------
+    >>> from voxrender.object.segments import encode
+    >>> mask = np.zeros((4, 4, 4), bool); mask[0, 0, 0] = mask[3, 2:4, 1:3] = True
+    >>> coarse = coarser(encode(mask))
+    >>> coarse.shape, coarse.to_mask()[:, :, 0].astype(int).tolist()
+    ((2, 2, 2), [[1, 0], [0, 1]])
+    """
+    if not (isinstance(factor, (int, np.integer)) and factor >= 2):
+        raise ValueError(f"factor {factor!r} must be a whole number of voxels, 2 or more")
+    nz, ny, nx = segments.shape
+    shape = tuple(-(-n // factor) for n in (nz, ny, nx))
+    offsets = np.asarray(segments.offsets)
+    parts = [_binned_runs(segments, offsets, first, last, factor, shape)
+             for first, last in _slice_groups(offsets[::ny], factor, nz)]
+    rows, starts, ends, labels = (np.concatenate(column) for column in zip(*parts, strict=True))
+    coarse_offsets = np.zeros(shape[0] * shape[1] + 1, np.int64)
+    np.cumsum(np.bincount(rows, minlength=shape[0] * shape[1]), out=coarse_offsets[1:])
+    meta = {key: value for key, value in segments.meta.items() if key != "levels"}
+    meta["level_factor"] = int(meta.get("level_factor", 1)) * int(factor)
+    if segments.labels is not None and "label_voxels" not in meta:     # the tables keep the full resolution's
+        own = segments.label_voxels()
+        meta["label_voxels"] = {str(k): v for k, v in own.items()}
+        meta.setdefault("label_ml", {str(k): label_sets.millilitres(v, segments.spacing) for k, v in own.items()})
+    keys = rows * (shape[2] + 1) + starts                  # the coarse runs, sorted: where a voxel's run is
+    normals = None if segments.normals is None else _coarser_normals(
+        segments.normals, factor, shape, meta["level_factor"], lambda voxels: _inside(voxels, keys, rows, ends, shape))
+    return Segments(shape, starts.astype(np.int32), ends.astype(np.int32), coarse_offsets,
+                    tuple(float(s) * factor for s in segments.spacing), meta, normals,
+                    None if segments.labels is None else labels.astype(np.uint16))
+
+
+def build_levels(segments, factors=FACTORS):
+    """The coarser levels of ``segments``: one :func:`coarser` object for each of ``factors`` (each a multiple of
+    the one before, and made from it, so the object is read once at full resolution).
+
+    >>> from voxrender.object.segments import encode
+    >>> [level.shape for level in build_levels(encode(np.ones((8, 8, 8), bool)))]
+    [(4, 4, 4), (2, 2, 2), (1, 1, 1)]
+    """
+    levels, finer, done = [], segments, 1
+    for factor in factors:
+        if factor % done:
+            raise ValueError(f"the factors {factors} must each be a multiple of the one before")
+        finer = coarser(finer, factor // done)
+        levels.append(finer)
+        done = factor
+    return tuple(levels)
+
+
+def choose_level(factors, pixel_voxels):
+    """The level (0 the full resolution; ``k`` the ``k``-th of ``factors``) whose voxel is the largest no larger
+    than a pixel of ``pixel_voxels`` full-resolution voxels.
+
+    >>> choose_level((2, 4, 8), 2.0), choose_level((2, 4, 8), 1.9), choose_level((2, 4, 8), 100.0)
+    (1, 0, 3)
+    """
+    fitting = [k for k, factor in enumerate(factors, 1) if factor <= pixel_voxels * (1 + 1e-9)]
+    return max(fitting, default=0)
+
+
+def _slice_groups(slice_offsets, factor, nz):
+    """``(first, last)`` fine slices of groups of whole coarse slices, each holding about ``_RUNS_AT_ONCE`` runs
+    (or one coarse slice): the work of one pass of :func:`_binned_runs`.
+    """
+    bounds = np.append(np.arange(0, nz, factor), nz)
+    runs = np.asarray(slice_offsets)[bounds]
+    groups, first = [], 0
+    while first < len(bounds) - 1:
+        last = max(int(np.searchsorted(runs, runs[first] + _RUNS_AT_ONCE, "right")) - 1, first + 1)
+        last = min(last, len(bounds) - 1)
+        groups.append((int(bounds[first]), int(bounds[last])))
+        first = last
+    return groups
+
+
+def _binned_runs(segments, offsets, first, last, factor, shape):
+    """The coarse runs of fine slices ``first .. last - 1`` (whole coarse slices): their coarse rows, starts, ends
+    and labels, sorted by row and start.  Each fine run covers coarse voxels ``start // f .. end // f`` of its
+    coarse row; the runs of one label that overlap or touch in a coarse row are merged, and where labels meet,
+    the largest wins.
+    """
+    ny = segments.shape[1]
+    _, cny, cnx = shape
+    lo, hi = int(offsets[first * ny]), int(offsets[last * ny])
+    counts = np.diff(offsets[first * ny:last * ny + 1])
+    fine_rows = np.repeat(np.arange(first * ny, last * ny, dtype=np.int64), counts)
+    z, y = np.divmod(fine_rows, ny)
+    rows = z // factor * cny + y // factor
+    starts = np.asarray(segments.starts[lo:hi]) // factor
+    ends = np.asarray(segments.ends[lo:hi]) // factor
+    labels = np.ones(hi - lo, np.int64) if segments.labels is None else np.asarray(segments.labels[lo:hi], np.int64)
+    rows, starts, ends, labels = _merged(rows, starts, ends, labels, cnx)
+    if segments.labels is not None and len(rows):
+        rows, starts, ends, labels = _painted(rows, starts, ends, labels, cnx)
+    return rows, starts, ends, labels
+
+
+def _merged(rows, starts, ends, labels, width):
+    """The union of the runs ``[starts, ends]`` of each (row, label): sorted, the overlapping and touching merged."""
+    span = width + 2                     # a run of one (row, label) never reaches the next one's keys
+    group = rows * (int(labels.max(initial=0)) + 1) + labels
+    order = np.lexsort((starts, group))
+    group, keyed_starts = group[order], group[order] * span + starts[order]
+    reach = np.maximum.accumulate(group * span + ends[order])       # the furthest end so far, in key space
+    new = np.ones(len(order), bool)
+    new[1:] = keyed_starts[1:] > reach[:-1] + 1
+    first = np.flatnonzero(new)
+    last = np.append(first[1:], len(order))[:len(first)] - 1       # none when there are no runs
+    return rows[order][first], starts[order][first], reach[last] - group[first] * span, labels[order][first]
+
+
+def _painted(rows, starts, ends, labels, width):
+    """The labelled runs of rows where the runs of different labels may overlap, the largest label winning: each
+    row's runs are painted on a line of its own, in the order of their labels, and read back as runs.
+    """
+    present, line_of = np.unique(rows, return_inverse=True)
+    lines = np.zeros((len(present), width), np.uint16)
+    order = np.argsort(labels, kind="stable")                # the largest label painted last
+    lengths = ends[order] - starts[order] + 1
+    columns, owner = ranges(starts[order], lengths, owners=True)
+    flat = line_of[order][owner] * width + columns
+    np.maximum.at(lines.reshape(-1), flat, labels[order][owner].astype(np.uint16))
+    painted = encode_labels(lines[:, None, :])
+    repeats = np.diff(painted.offsets)
+    return np.repeat(present, repeats), painted.starts, painted.ends, painted.labels
+
+
+def _inside(voxels, keys, rows, ends, shape):
+    """Whether the coarse voxels (linear numbers) are in the coarse object of runs ``keys`` (row and start),
+    ``rows`` and ``ends``.
+    """
+    _, cny, cnx = shape
+    row, x = np.divmod(voxels, cnx)
+    run = np.searchsorted(keys, row * (cnx + 1) + x, "right") - 1
+    safe = np.maximum(run, 0)
+    return (run >= 0) & (rows[safe] == row) & (ends[safe] >= x)
+
+
+def _coarser_normals(normals, factor, shape, in_all, inside):
+    """The normals of the coarse object's voxels that hold fine band voxels (``inside(voxels)`` says which are the
+    object's): the unit sum of theirs, a group of slices at a time (a coarse voxel whose fine normals cancel has
+    none).  The empty side of the coarse surface keeps none: a hit point's normal comes from the object's side
+    (:meth:`voxrender.object.normals.SurfaceNormals.at` weighs the corners that have one), and the file is smaller.
+    """
+    nz, ny, nx = normals.shape
+    _, cny, cnx = shape
+    index = normals.index
+    plane = ny * nx
+    bounds = np.searchsorted(index, np.append(np.arange(0, nz, factor), nz) * plane)
+    found, packed = [], []
+    first = 0
+    while first < len(bounds) - 1:
+        last = max(int(np.searchsorted(bounds, bounds[first] + _RUNS_AT_ONCE, "right")) - 1, first + 1)
+        last = min(last, len(bounds) - 1)
+        lo, hi = int(bounds[first]), int(bounds[last])
+        first = last
+        if lo == hi:
+            continue
+        fine = np.asarray(index[lo:hi], np.int64)
+        z, rest = np.divmod(fine, plane)
+        y, x = np.divmod(rest, nx)
+        coarse = (z // factor * cny + y // factor) * cnx + x // factor
+        voxels, which = np.unique(coarse, return_inverse=True)
+        unit = octahedral_decode(np.asarray(normals.packed[lo:hi]).reshape(-1, 2))
+        total = np.stack([np.bincount(which, weights=unit[:, k], minlength=len(voxels)) for k in range(3)], axis=1)
+        length = np.sqrt(np.einsum("nk,nk->n", total, total))
+        kept = (length > 1e-6) & inside(voxels)
+        found.append(voxels[kept])
+        packed.append(octahedral_encode(total[kept] / length[kept, None]))
+    index_type = np.int32 if np.prod(shape, dtype=np.int64) < 2 ** 31 else np.int64
+    index = np.concatenate(found).astype(index_type) if found else np.zeros(0, index_type)
+    packed = np.concatenate(packed) if packed else np.zeros((0, 2), np.int16)
+    source = normals.source.split(", summed over")[0]
+    return SurfaceNormals(shape, index, packed, f"{source}, summed over {in_all}x{in_all}x{in_all} voxels")
