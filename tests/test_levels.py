@@ -154,7 +154,7 @@ def test_the_level_for_a_picture_is_the_coarsest_no_larger_than_a_pixel():
     # 56 voxels and a margin of 5 % on each side fill the picture: a pixel is 61.6 / size voxels
     for size, expected in ((512, 0), (40, 0), (30, 1), (15, 2), (7, 3), (2, 3)):
         assert level_for(fine, View(size=(size, size)), options)[0] == expected, size
-    assert level_for(fine, View(size=(64, 64), scale=0.25), options) == (2, View(size=(64, 64), scale=1.0))
+    assert level_for(fine, View(size=(64, 64), scale=0.25), options) == (2, View(size=(64, 64), scale=1.0))   # 64/4
     assert level_for(fine, View(size=(64, 64), scale=0.25), options, level=1)[1].scale == 0.5
     from voxrender._render import Clip
 
@@ -202,3 +202,46 @@ def test_encode_levels_and_render_the_one_that_suits_the_picture(tmp_path):
     assert_bad_input(run("render", tmp_path / "plain.vxs", "--level", "1", "-o", tmp_path / "x.png"), "--level",
                      "encode --levels")
     assert not (tmp_path / "x.png").exists()
+
+
+@pytest.mark.parametrize("angles", [(31, 19, 0), (-45, 15, 10), (61, 119, 0)])
+def test_a_framed_view_gives_the_same_picture_of_a_level(angles):
+    """A view with its scale and centre set (a turntable's frames share them) draws a level where the full
+    resolution lies: on an object made of whole coarse voxels, on a grid that is not, the same pixels."""
+    mask = np.zeros((17, 18, 15), bool)
+    mask[4:12, 2:10, 6:14] = True
+    mask[12:14, 10:16, 2:4] = True
+    fine = segments.encode(mask)
+    fine.levels = levels.build_levels(fine, (2,))
+    view = View(*angles, (48, 52), 1.7, centre=(1.3, -0.7))
+    level, coarse_view = level_for(fine, view, RenderOptions(), level=1)
+    assert level == 1 and coarse_view.scale == pytest.approx(3.4)
+    full, coarse = render(fine, view, "btf").depth, render(fine.levels[0], coarse_view, "btf").depth
+    assert np.isfinite(full).sum() > 300
+    assert np.array_equal(np.isfinite(full), np.isfinite(coarse))
+
+
+def test_a_batch_turns_a_file_with_levels_from_the_level_that_suits_it(tmp_path):
+    """A turntable's frames share one framing, so every frame of a small picture comes from the same level, in the
+    place the full resolution's picture has; --level 0 gives the pictures of the file without levels."""
+    mask = np.zeros((40, 48, 44), bool)                 # of whole voxels of every level, on a grid that is not
+    mask[8:32, 8:40, 8:40] = True
+    mask[16:24, 0:8, 16:24] = True
+    fine = segments.encode(mask, meta={"threshold": 1})
+    fine.normals = surface_normals(mask)
+    vxs.save(fine, tmp_path / "plain.vxs")
+    fine.levels = levels.build_levels(fine)
+    vxs.save(fine, tmp_path / "kept.vxs")
+    made = {}
+    for name, path, level in (("plain", "plain.vxs", ()), ("zero", "kept.vxs", ("--level", "0")),
+                              ("auto", "kept.vxs", ())):
+        result = run("batch", tmp_path / path, "--turntable", "3", "--size", "12", "--jobs", "1", *level,
+                     "--background", "255,0,255", "-o", tmp_path / name)
+        assert result.exit_code == 0, result.output
+        made[name] = [iio.imread(next((tmp_path / name).glob(f"*/turn00{k}.png"))) for k in range(3)]
+    for plain, zero, auto in zip(made["plain"], made["zero"], made["auto"], strict=True):
+        assert np.array_equal(plain, zero)
+        assert not np.array_equal(plain, auto)
+        # the object is made of whole coarse voxels: its level covers the pixels the full resolution covers
+        covered, coarse = ((picture[..., :3] != (255, 0, 255)).any(axis=2) for picture in (plain, auto))
+        assert covered.sum() > 30 and np.array_equal(coarse, covered)

@@ -17,7 +17,7 @@ from .._render import framing_box, method_record, octree_for
 from ..errors import InputError
 from ..object.pipeline import is_segments_file, load_segments
 from ..outputs import about, output, write_outputs
-from ..pictures import picture
+from ..pictures import level_for, picture
 from ..space.view import frame_together
 from .cache import cache_key, checksum, is_intact, load_encoded, load_study_files, record_of, study_files
 
@@ -143,8 +143,11 @@ def render_task(item, view, index, segments_path, out_dir, encode_seconds):
         stamp = (status.st_size, status.st_mtime_ns)
         encoded = load_encoded(str(segments_path), stamp)
         study = load_study_files(str(segments_path), stamp) if item.needs_grey else None
-        result = picture(encoded.segments, framed(item, view, encoded.segments), item.options,
-                         tree=octree_for(item.method, encoded), study=study)
+        chosen = framed(item, view, encoded.segments)
+        if encoded.segments.levels and study is None:      # an input .vxs with levels: the one that suits the view
+            level, chosen = level_for(encoded.segments, chosen, item.options, item.read.level)
+            encoded = encoded.at_level(level)
+        result = picture(encoded.segments, chosen, item.options, tree=octree_for(item.method, encoded), study=study)
         told = about(encoded.segments)
         if outputs.dicom is not None:
             told.update(_dicom_fields(item, out_dir, index))

@@ -280,8 +280,15 @@ def level_for(segments, view, options=None, level=None):
     if level and options.clip is not None:
         raise InputError("clip limits are given in the object's own voxels: draw them at level 0",
                          parameter="level")
-    factor = drawn.meta.get("level_factor", 1) if level else 1
-    return level, view if view.scale is None else replace(view, scale=view.scale * factor)
+    if not level or view.scale is None:
+        return level, view
+    # the same picture of the coarse grid: a coarse voxel q is fine p = f q + (f - 1) / 2, so image space scales by
+    # 1 / f and moves by R delta / f, delta the way the coarse grid's centre lies from the fine one's
+    factor = drawn.meta["level_factor"]
+    delta = (np.array(drawn.shape[::-1]) * factor - np.array(segments.shape[::-1])) / 2
+    shift = view.matrix @ delta
+    centre = tuple(float(c - d) / factor for c, d in zip(view.centre, shift[:2], strict=True))
+    return level, replace(view, scale=view.scale * factor, centre=centre)
 
 
 def _label_rows(segments, table, pixels=None):
