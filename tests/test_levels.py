@@ -245,3 +245,19 @@ def test_a_batch_turns_a_file_with_levels_from_the_level_that_suits_it(tmp_path)
         # the object is made of whole coarse voxels: its level covers the pixels the full resolution covers
         covered, coarse = ((picture[..., :3] != (255, 0, 255)).any(axis=2) for picture in (plain, auto))
         assert covered.sum() > 30 and np.array_equal(coarse, covered)
+
+
+def test_a_file_without_levels_keeps_the_layout_it_always_had(tmp_path):
+    """Runs, the octree's sections, then labels and normals: the .vxs and .vxo bytes of earlier versions."""
+    from voxrender.object import octree
+
+    mask = torus()
+    fine = segments.encode_labels(mask.astype(np.uint16) * 2)
+    fine.normals = surface_normals(mask)
+    sections = octree.sections(octree.build_from_segments(fine))
+    vxs.save(fine, tmp_path / "a.vxo", sections)
+    names = list(vxs.read_sections(tmp_path / "a.vxo")[0]["arrays"])
+    assert names == ["offsets", "starts", "ends", *sections, "labels", "normal_index", "normal_packed"]
+    fine.levels = levels.build_levels(fine)
+    vxs.save(fine, tmp_path / "b.vxo", sections)
+    assert list(vxs.read_sections(tmp_path / "b.vxo")[0]["arrays"])[:len(names)] == names     # levels after

@@ -34,8 +34,11 @@ def save(segments, path, sections=None):
     Its coarser :attr:`~voxrender.object.segments.Segments.levels` go with it, their arrays named ``level1.starts``
     and so on, their grids and what their meta adds in ``meta["levels"]``.
     """
-    arrays = _object_arrays(segments)
+    own = _object_arrays(segments)
+    # the runs, the further sections, then labels and normals: the order files have always had
+    arrays = {name: own.pop(name) for name in ("offsets", "starts", "ends")}
     arrays.update({name: np.asarray(array).ravel() for name, array in (sections or {}).items()})
+    arrays.update(own)
     meta = dict(segments.meta)
     if segments.normals is not None:
         meta["normals_from"] = segments.normals.source
