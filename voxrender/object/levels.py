@@ -60,24 +60,38 @@ def coarser(segments, factor=2):
         raise ValueError(f"factor {factor!r} must be a whole number of voxels, 2 or more")
     nz, ny, nx = segments.shape
     shape = tuple(-(-n // factor) for n in (nz, ny, nx))
-    offsets = np.asarray(segments.offsets)
-    parts = [_binned_runs(segments, offsets, first, last, factor, shape)
-             for first, last in _slice_groups(offsets[::ny], factor, nz)]
-    rows, starts, ends, labels = (np.concatenate(column) for column in zip(*parts, strict=True))
-    coarse_offsets = np.zeros(shape[0] * shape[1] + 1, np.int64)
-    np.cumsum(np.bincount(rows, minlength=shape[0] * shape[1]), out=coarse_offsets[1:])
     meta = {key: value for key, value in segments.meta.items() if key != "levels"}
     meta["level_factor"] = int(meta.get("level_factor", 1)) * int(factor)
     if segments.labels is not None and "label_voxels" not in meta:     # the tables keep the full resolution's
         own = segments.label_voxels()
         meta["label_voxels"] = {str(k): v for k, v in own.items()}
         meta.setdefault("label_ml", {str(k): label_sets.millilitres(v, segments.spacing) for k, v in own.items()})
-    keys = rows * (shape[2] + 1) + starts                  # the coarse runs, sorted: where a voxel's run is
-    normals = None if segments.normals is None else _coarser_normals(
-        segments.normals, factor, shape, meta["level_factor"], lambda voxels: _inside(voxels, keys, rows, ends, shape))
-    return Segments(shape, starts.astype(np.int32), ends.astype(np.int32), coarse_offsets,
-                    tuple(float(s) * factor for s in segments.spacing), meta, normals,
-                    None if segments.labels is None else labels.astype(np.uint16))
+    offsets = np.asarray(segments.offsets)
+    counts = np.zeros(shape[0] * shape[1], np.int64)
+    kept = {"starts": [], "ends": [], "labels": [], "index": [], "packed": []}
+    for first, last in _slice_groups(offsets[::ny], factor, nz):      # a group of whole coarse slices at a time
+        rows, starts, ends, labels = _binned_runs(segments, offsets, first, last, factor, shape)
+        counts += np.bincount(rows, minlength=len(counts))
+        kept["starts"].append(starts.astype(np.int32))
+        kept["ends"].append(ends.astype(np.int32))
+        if segments.labels is not None:
+            kept["labels"].append(labels.astype(np.uint16))
+        if segments.normals is not None:
+            index, packed = _binned_normals(segments.normals, first, last, factor, shape, (rows, starts, ends))
+            kept["index"].append(index)
+            kept["packed"].append(packed)
+    coarse_offsets = np.zeros(len(counts) + 1, np.int64)
+    np.cumsum(counts, out=coarse_offsets[1:])
+    starts, ends = (np.concatenate(kept[name]) for name in ("starts", "ends"))
+    normals = None
+    if segments.normals is not None:
+        index_type = np.int32 if np.prod(shape, dtype=np.int64) < 2 ** 31 else np.int64
+        source = segments.normals.source.split(", summed over")[0]
+        f = meta["level_factor"]
+        normals = SurfaceNormals(shape, np.concatenate(kept["index"]).astype(index_type),
+                                 np.concatenate(kept["packed"]), f"{source}, summed over {f}x{f}x{f} voxels")
+    return Segments(shape, starts, ends, coarse_offsets, tuple(float(s) * factor for s in segments.spacing), meta,
+                    normals, None if segments.labels is None else np.concatenate(kept["labels"]))
 
 
 def build_levels(segments, factors=FACTORS):
@@ -176,50 +190,28 @@ def _painted(rows, starts, ends, labels, width):
     return np.repeat(present, repeats), painted.starts, painted.ends, painted.labels
 
 
-def _inside(voxels, keys, rows, ends, shape):
-    """Whether the coarse voxels (linear numbers) are in the coarse object of runs ``keys`` (row and start),
-    ``rows`` and ``ends``.
-    """
-    _, cny, cnx = shape
-    row, x = np.divmod(voxels, cnx)
-    run = np.searchsorted(keys, row * (cnx + 1) + x, "right") - 1
-    safe = np.maximum(run, 0)
-    return (run >= 0) & (rows[safe] == row) & (ends[safe] >= x)
-
-
-def _coarser_normals(normals, factor, shape, in_all, inside):
-    """The normals of the coarse object's voxels that hold fine band voxels (``inside(voxels)`` says which are the
-    object's): the unit sum of theirs, a group of slices at a time (a coarse voxel whose fine normals cancel has
-    none).  The empty side of the coarse surface keeps none: a hit point's normal comes from the object's side
-    (:meth:`voxrender.object.normals.SurfaceNormals.at` weighs the corners that have one), and the file is smaller.
+def _binned_normals(normals, first, last, factor, shape, runs):
+    """The normals of the coarse voxels of fine slices ``first .. last - 1`` that are in the coarse object (``runs``:
+    its rows, starts and ends there, sorted) and hold fine band voxels: the unit sum of theirs (a coarse voxel whose
+    fine normals cancel has none).  The empty side of the coarse surface keeps none: a hit point's normal comes from
+    the object's side (:meth:`voxrender.object.normals.SurfaceNormals.at` weighs the corners that have one), and the
+    file is smaller.  Returns their sorted voxel numbers and packed normals.
     """
     nz, ny, nx = normals.shape
     _, cny, cnx = shape
-    index = normals.index
     plane = ny * nx
-    bounds = np.searchsorted(index, np.append(np.arange(0, nz, factor), nz) * plane)
-    found, packed = [], []
-    first = 0
-    while first < len(bounds) - 1:
-        last = max(int(np.searchsorted(bounds, bounds[first] + _RUNS_AT_ONCE, "right")) - 1, first + 1)
-        last = min(last, len(bounds) - 1)
-        lo, hi = int(bounds[first]), int(bounds[last])
-        first = last
-        if lo == hi:
-            continue
-        fine = np.asarray(index[lo:hi], np.int64)
-        z, rest = np.divmod(fine, plane)
-        y, x = np.divmod(rest, nx)
-        coarse = (z // factor * cny + y // factor) * cnx + x // factor
-        voxels, which = np.unique(coarse, return_inverse=True)
-        unit = octahedral_decode(np.asarray(normals.packed[lo:hi]).reshape(-1, 2))
-        total = np.stack([np.bincount(which, weights=unit[:, k], minlength=len(voxels)) for k in range(3)], axis=1)
-        length = np.sqrt(np.einsum("nk,nk->n", total, total))
-        kept = (length > 1e-6) & inside(voxels)
-        found.append(voxels[kept])
-        packed.append(octahedral_encode(total[kept] / length[kept, None]))
-    index_type = np.int32 if np.prod(shape, dtype=np.int64) < 2 ** 31 else np.int64
-    index = np.concatenate(found).astype(index_type) if found else np.zeros(0, index_type)
-    packed = np.concatenate(packed) if packed else np.zeros((0, 2), np.int16)
-    source = normals.source.split(", summed over")[0]
-    return SurfaceNormals(shape, index, packed, f"{source}, summed over {in_all}x{in_all}x{in_all} voxels")
+    lo, hi = (int(v) for v in np.searchsorted(normals.index, [first * plane, last * plane]))
+    fine = np.asarray(normals.index[lo:hi], np.int64)
+    z, rest = np.divmod(fine, plane)
+    y, x = np.divmod(rest, nx)
+    voxels, which = np.unique((z // factor * cny + y // factor) * cnx + x // factor, return_inverse=True)
+    unit = octahedral_decode(np.asarray(normals.packed[lo:hi]).reshape(-1, 2))
+    total = np.stack([np.bincount(which, weights=unit[:, k], minlength=len(voxels)) for k in range(3)], axis=1)
+    length = np.sqrt(np.einsum("nk,nk->n", total, total))
+    rows, starts, ends = runs
+    row, column = np.divmod(voxels, cnx)
+    run = np.searchsorted(rows * (cnx + 1) + starts, row * (cnx + 1) + column, "right") - 1
+    safe = np.maximum(run, 0)
+    inside = (run >= 0) & (rows[safe] == row) & (ends[safe] >= column) if len(rows) else np.zeros(len(voxels), bool)
+    kept = (length > 1e-6) & inside
+    return voxels[kept], octahedral_encode(total[kept] / length[kept, None])
