@@ -73,7 +73,7 @@ def test_the_levels_are_each_made_from_the_one_before_and_equal_binning_the_voxe
         levels.build_levels(segments.encode(mask), (2, 3))
 
 
-def test_a_coarse_normal_is_the_unit_sum_of_its_voxels_normals():
+def test_a_coarse_normal_is_the_unit_sum_of_its_voxels_normals(monkeypatch):
     """Held against the sum written out a voxel at a time, at the coarse object's voxels, and outward on a ball."""
     zz, yy, xx = np.mgrid[:24, :24, :24]
     ball = (xx - 11.3) ** 2 + (yy - 12.1) ** 2 + (zz - 11.7) ** 2 <= 81
@@ -97,6 +97,10 @@ def test_a_coarse_normal_is_the_unit_sum_of_its_voxels_normals():
     outward /= np.linalg.norm(outward, axis=1, keepdims=True)
     assert np.einsum("nk,nk->n", octahedral_decode(coarse.packed), outward).min() > 0.9
     assert "summed over 2x2x2" in coarse.source and isinstance(coarse, SurfaceNormals)
+    monkeypatch.setattr(levels, "_RUNS_AT_ONCE", 7)           # groups of one coarse slice, summed a slice at a time
+    monkeypatch.setattr(levels, "_CELLS_AT_ONCE", 1)
+    again = levels.coarser(fine, 2).normals
+    assert np.array_equal(again.index, coarse.index) and np.array_equal(again.packed, coarse.packed)
 
 
 @pytest.mark.parametrize("method", ["ftb", "btf", "octree-ftb", "octree-sort", "zbuffer"])

@@ -40,3 +40,24 @@ def read_mapped(array, first, last):
     return np.fromfile(mapping.filename, array.dtype, count=max(last - first, 0),
                        offset=start + first * array.itemsize)
 
+
+
+def search_mapped(array, values, block=1 << 20):
+    """``np.searchsorted(array, values)`` of a sorted one-dimensional ``array`` that may be a read-only mapping of a
+    file: NumPy's own search copies such an array whole first (gigabytes, for a large object's normals); this one
+    finds each value's block among every ``block``-th value, then searches that block alone, read from the file.
+
+    >>> search_mapped(np.arange(0, 100, 2), [-1, 0, 3, 98, 99], block=8).tolist()
+    [0, 0, 2, 49, 50]
+    """
+    values = np.asarray(values)
+    if not is_mapped(array):
+        return np.searchsorted(array, values)
+    firsts = np.array(array[::block])                     # a value of every block: a page each
+    found = np.empty(values.shape, np.int64)
+    which = np.maximum(np.searchsorted(firsts, values, "right") - 1, 0)
+    for k in np.unique(which):                            # a Python loop over blocks, not values
+        here = which == k
+        part = read_mapped(array, k * block, (k + 1) * block)
+        found[here] = k * block + np.searchsorted(part, values[here])
+    return found

@@ -21,11 +21,14 @@ from __future__ import annotations
 import numpy as np
 
 from .._shared import label_sets
+from .._shared.mapped import read_mapped, search_mapped
+from .._shared.threads import on_threads
 from .normals import SurfaceNormals, octahedral_decode, octahedral_encode
 from .segments import Segments, encode_labels, ranges
 
 FACTORS = (2, 4, 8)          # the levels a .vxs keeps beside its own voxels: level k is 2**k times coarser
-_RUNS_AT_ONCE = 1 << 23      # fine runs (or normals) binned in one group of coarse slices
+_RUNS_AT_ONCE = 1 << 21      # fine runs and normals binned in one group of coarse slices
+_CELLS_AT_ONCE = 1 << 23     # and coarse voxels whose normals are summed there, in dense arrays
 
 
 def coarser(segments, factor=2):
@@ -67,28 +70,36 @@ def coarser(segments, factor=2):
         meta["label_voxels"] = {str(k): v for k, v in own.items()}
         meta.setdefault("label_ml", {str(k): label_sets.millilitres(v, segments.spacing) for k, v in own.items()})
     offsets = np.asarray(segments.offsets)
-    counts = np.zeros(shape[0] * shape[1], np.int64)
-    kept = {"starts": [], "ends": [], "labels": [], "index": [], "packed": []}
-    for first, last in _slice_groups(offsets[::ny], factor, nz):      # a group of whole coarse slices at a time
+    cny = shape[1]
+
+    def group(bounds):                                    # a group of whole coarse slices, on a thread
+        first, last = bounds
         rows, starts, ends, labels = _binned_runs(segments, offsets, first, last, factor, shape)
-        counts += np.bincount(rows, minlength=len(counts))
-        kept["starts"].append(starts.astype(np.int32))
-        kept["ends"].append(ends.astype(np.int32))
-        if segments.labels is not None:
-            kept["labels"].append(labels.astype(np.uint16))
-        if segments.normals is not None:
-            index, packed = _binned_normals(segments.normals, first, last, factor, shape, (rows, starts, ends))
-            kept["index"].append(index)
-            kept["packed"].append(packed)
+        begin = first // factor * cny
+        counts = np.bincount(rows - begin, minlength=((last - 1) // factor + 1) * cny - begin)
+        normals = None if segments.normals is None else \
+            _binned_normals(segments.normals, first, last, factor, shape, (rows, starts, ends))
+        return begin, counts, starts.astype(np.int32), ends.astype(np.int32), \
+            None if segments.labels is None else labels.astype(np.uint16), normals
+
+    counts = np.zeros(shape[0] * cny, np.int64)
+    kept = {"starts": [], "ends": [], "labels": [], "index": [], "packed": []}
+    for begin, own, starts, ends, labels, normals in on_threads(group, _slice_groups(segments, factor)):
+        counts[begin:begin + len(own)] = own
+        kept["starts"].append(starts)
+        kept["ends"].append(ends)
+        kept["labels"].append(labels)
+        if normals is not None:
+            kept["index"].append(normals[0])
+            kept["packed"].append(normals[1])
     coarse_offsets = np.zeros(len(counts) + 1, np.int64)
     np.cumsum(counts, out=coarse_offsets[1:])
     starts, ends = (np.concatenate(kept[name]) for name in ("starts", "ends"))
     normals = None
     if segments.normals is not None:
-        index_type = np.int32 if np.prod(shape, dtype=np.int64) < 2 ** 31 else np.int64
         source = segments.normals.source.split(", summed over")[0]
         f = meta["level_factor"]
-        normals = SurfaceNormals(shape, np.concatenate(kept["index"]).astype(index_type),
+        normals = SurfaceNormals(shape, np.concatenate(kept["index"]),
                                  np.concatenate(kept["packed"]), f"{source}, summed over {f}x{f}x{f} voxels")
     return Segments(shape, starts, ends, coarse_offsets, tuple(float(s) * factor for s in segments.spacing), meta,
                     normals, None if segments.labels is None else np.concatenate(kept["labels"]))
@@ -123,16 +134,21 @@ def choose_level(factors, pixel_voxels):
     return max(fitting, default=0)
 
 
-def _slice_groups(slice_offsets, factor, nz):
-    """``(first, last)`` fine slices of groups of whole coarse slices, each holding about ``_RUNS_AT_ONCE`` runs
-    (or one coarse slice): the work of one pass of :func:`_binned_runs`.
+def _slice_groups(segments, factor):
+    """``(first, last)`` fine slices of groups of whole coarse slices, each holding about ``_RUNS_AT_ONCE`` runs and
+    normals (or one coarse slice): the work of one pass of :func:`_binned_runs` and :func:`_binned_normals`.
     """
+    nz, ny, nx = segments.shape
     bounds = np.append(np.arange(0, nz, factor), nz)
-    runs = np.asarray(slice_offsets)[bounds]
+    work = np.asarray(segments.offsets[bounds * ny], np.int64)
+    if segments.normals is not None:
+        work = work + search_mapped(segments.normals.index, bounds * (ny * nx))
+    plane = -(-ny // factor) * -(-nx // factor)
+    most = max(1, _CELLS_AT_ONCE // plane)                 # coarse slices a group's dense sums may span
     groups, first = [], 0
     while first < len(bounds) - 1:
-        last = max(int(np.searchsorted(runs, runs[first] + _RUNS_AT_ONCE, "right")) - 1, first + 1)
-        last = min(last, len(bounds) - 1)
+        last = max(int(np.searchsorted(work, work[first] + _RUNS_AT_ONCE, "right")) - 1, first + 1)
+        last = min(last, len(bounds) - 1, first + most)
         groups.append((int(bounds[first]), int(bounds[last])))
         first = last
     return groups
@@ -151,9 +167,10 @@ def _binned_runs(segments, offsets, first, last, factor, shape):
     fine_rows = np.repeat(np.arange(first * ny, last * ny, dtype=np.int64), counts)
     z, y = np.divmod(fine_rows, ny)
     rows = z // factor * cny + y // factor
-    starts = np.asarray(segments.starts[lo:hi]) // factor
-    ends = np.asarray(segments.ends[lo:hi]) // factor
-    labels = np.ones(hi - lo, np.int64) if segments.labels is None else np.asarray(segments.labels[lo:hi], np.int64)
+    starts = read_mapped(segments.starts, lo, hi) // factor
+    ends = read_mapped(segments.ends, lo, hi) // factor
+    labels = np.ones(hi - lo, np.int64) if segments.labels is None else read_mapped(segments.labels, lo, hi) \
+        .astype(np.int64)
     rows, starts, ends, labels = _merged(rows, starts, ends, labels, cnx)
     if segments.labels is not None and len(rows):
         rows, starts, ends, labels = _painted(rows, starts, ends, labels, cnx)
@@ -200,13 +217,18 @@ def _binned_normals(normals, first, last, factor, shape, runs):
     nz, ny, nx = normals.shape
     _, cny, cnx = shape
     plane = ny * nx
-    lo, hi = (int(v) for v in np.searchsorted(normals.index, [first * plane, last * plane]))
-    fine = np.asarray(normals.index[lo:hi], np.int64)
+    lo, hi = (int(v) for v in search_mapped(normals.index, [first * plane, last * plane]))
+    fine = read_mapped(normals.index, lo, hi).astype(np.int64)
     z, rest = np.divmod(fine, plane)
     y, x = np.divmod(rest, nx)
-    voxels, which = np.unique((z // factor * cny + y // factor) * cnx + x // factor, return_inverse=True)
-    unit = octahedral_decode(np.asarray(normals.packed[lo:hi]).reshape(-1, 2))
-    total = np.stack([np.bincount(which, weights=unit[:, k], minlength=len(voxels)) for k in range(3)], axis=1)
+    # summed on the dense grid of the group's coarse slices (bincount: no sort of the fine voxels)
+    base = first // factor * cny * cnx
+    local = (z // factor * cny + y // factor) * cnx + x // factor - base
+    cells = ((last - 1) // factor - first // factor + 1) * cny * cnx
+    present = np.flatnonzero(np.bincount(local, minlength=cells))
+    voxels = present + base
+    unit = octahedral_decode(read_mapped(np.asarray(normals.packed).reshape(-1), 2 * lo, 2 * hi).reshape(-1, 2))
+    total = np.stack([np.bincount(local, weights=unit[:, k], minlength=cells)[present] for k in range(3)], axis=1)
     length = np.sqrt(np.einsum("nk,nk->n", total, total))
     rows, starts, ends = runs
     row, column = np.divmod(voxels, cnx)
@@ -214,4 +236,5 @@ def _binned_normals(normals, first, last, factor, shape, runs):
     safe = np.maximum(run, 0)
     inside = (run >= 0) & (rows[safe] == row) & (ends[safe] >= column) if len(rows) else np.zeros(len(voxels), bool)
     kept = (length > 1e-6) & inside
-    return voxels[kept], octahedral_encode(total[kept] / length[kept, None])
+    index_type = np.int32 if np.prod(shape, dtype=np.int64) < 2 ** 31 else np.int64
+    return voxels[kept].astype(index_type), octahedral_encode(total[kept] / length[kept, None])

@@ -101,8 +101,9 @@ def write_sections(path, shape, spacing, meta, arrays):
                 for part in array.files:
                     with open(part, "rb") as source:
                         shutil.copyfileobj(source, f, 16 << 20)
-            else:
-                f.write(np.ascontiguousarray(array).data)    # no copy of the bytes
+            else:          # a mapped file's a block at a time from the file: its pages do not stay in memory
+                for block in blocks(np.ascontiguousarray(array).reshape(-1)):
+                    f.write(block.data)                  # no copy of the bytes
         f.truncate(data_start + position)
 
 
