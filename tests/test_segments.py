@@ -170,3 +170,26 @@ def test_a_header_length_beyond_the_file_is_bad_input(tmp_path):
     path.write_bytes(bytes(whole))
     with pytest.raises(InputError, match="its header of 9223372036854775808 bytes is longer than the file"):
         vxs.load(path)
+
+
+def test_normals_out_of_order_are_found_when_first_used(tmp_path):
+    """The normals' index is checked when they are first used (reading it whole is most of loading a big file, and
+    a picture from a coarser level needs it not): loaded, then refused as a damaged file, one line, exit 2."""
+    from test_cli import assert_bad_input, run
+
+    from voxrender.object.normals import surface_normals
+
+    mask = np.zeros((6, 6, 6), bool)
+    mask[1:5, 1:5, 1:5] = True
+    encoded = segments.encode(mask)
+    encoded.normals = surface_normals(mask)
+    path = tmp_path / "v.vxs"
+    vxs.save(encoded, path)
+    index = np.asarray(encoded.normals.index).copy()
+    index[[3, 4]] = index[[4, 3]]
+    _rewritten(path, lambda header: None, {"normal_index": index})
+    loaded = vxs.load(path)
+    with pytest.raises(InputError, match="damaged .vxs file \\(surface normals and their voxels disagree"):
+        loaded.normals.at(np.array([[2.5, 2.5, 0.9]]))
+    assert_bad_input(run("render", path, "-o", tmp_path / "v.png"), "damaged")
+    assert not (tmp_path / "v.png").exists()

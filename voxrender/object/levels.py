@@ -71,6 +71,8 @@ def coarser(segments, factor=2):
         meta.setdefault("label_ml", {str(k): label_sets.millilitres(v, segments.spacing) for k, v in own.items()})
     offsets = np.asarray(segments.offsets)
     cny = shape[1]
+    if segments.normals is not None:
+        segments.normals.check()
 
     def group(bounds):                                    # a group of whole coarse slices, on a thread
         first, last = bounds

@@ -16,7 +16,7 @@ from __future__ import annotations
 import itertools
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
@@ -156,10 +156,20 @@ class SurfaceNormals:
     index: np.ndarray
     packed: np.ndarray
     source: str = "grey values"
+    unchecked: object = field(default=None, repr=False, compare=False)   # a file's check, made on first use
+
+    def check(self):
+        """Run the check a file's normals were loaded with (that the index rises), once: it reads the whole index,
+        which a picture drawn from a coarser level never needs.
+        """
+        pending, self.unchecked = self.unchecked, None
+        if pending is not None:
+            pending()
 
     @cached_property
     def unit(self):
         """All the unit normals, decoded: x, y and z rows ``(3, M)`` float32."""
+        self.check()
         return np.stack(_decode(_words(self.packed)))
 
     @cached_property
@@ -167,6 +177,7 @@ class SurfaceNormals:
         """The band as bits, one per voxel of the volume and 64 to a word, and the count of band voxels before
         each word: the place of any voxel in ``index`` without a search.
         """
+        self.check()
         index = np.asarray(self.index, np.int64)
         words = np.zeros(int(np.prod(self.shape, dtype=np.int64)) // 64 + 2, np.uint64)
         word = index >> 6
@@ -191,6 +202,7 @@ class SurfaceNormals:
         """Normals ``(N, 3)`` at object points ``(N, 3)`` (x, y, z), interpolated from the eight voxel centres
         around each; NaN where none of the eight has one.
         """
+        self.check()
         points = np.asarray(points, dtype=np.float64)
         nz, ny, nx = self.shape
         index = np.asarray(self.index)                                    # a plain array, not a memory map

@@ -18,6 +18,7 @@ import numpy as np
 
 from .._shared.files import atomic_output
 from .._shared.mapped import blocks
+from .._shared.threads import on_threads
 from ..errors import InputError
 from .normals import SurfaceNormals
 from .segments import Segments
@@ -206,17 +207,24 @@ def _object_of(shape, spacing, meta, arrays, path):
     if (offsets.size != shape[0] * shape[1] + 1 or offsets[0] != 0 or starts.size != offsets[-1]
             or ends.size != starts.size or np.any(offsets[1:] < offsets[:-1])):
         raise _damaged(path, "index and runs disagree")
-    for first, last in zip(blocks(starts), blocks(ends), strict=True):
-        if first.size and (first.min() < 0 or last.max() >= shape[2] or np.any(first > last)):
-            raise _damaged(path, "runs leave their grid")
+    def off_grid(pair):
+        first, last = pair
+        return bool(first.size and (first.min() < 0 or last.max() >= shape[2] or np.any(first > last)))
+
+    if any(on_threads(off_grid, zip(blocks(starts), blocks(ends), strict=True))):
+        raise _damaged(path, "runs leave their grid")
     normals = None
     if "normal_index" in arrays:                 # files written before normals were kept have none
         index, packed = arrays["normal_index"], arrays.get("normal_packed", np.zeros(1, np.int16))
-        rising = all(np.all(block[1:] > block[:-1]) for block in blocks(index, 1))
-        if packed.size != 2 * index.size or index.size and (index[0] < 0 or index[-1] >= math.prod(shape)
-                                                            or not rising):
+        if packed.size != 2 * index.size or index.size and (index[0] < 0 or index[-1] >= math.prod(shape)):
             raise _damaged(path, "surface normals and their voxels disagree")
-        normals = SurfaceNormals(shape, index, packed.reshape(-1, 2), str(meta.get("normals_from", "grey values")))
+
+        def check_rising():         # read whole, so checked when first used: a picture of a level needs not
+            if not all(np.all(block[1:] > block[:-1]) for block in blocks(index, 1)):
+                raise _damaged(path, "surface normals and their voxels disagree")
+
+        normals = SurfaceNormals(shape, index, packed.reshape(-1, 2), str(meta.get("normals_from", "grey values")),
+                                 check_rising)
     labels = arrays.get("labels")           # single-object files have none
     if labels is not None and labels.size != starts.size:
         raise _damaged(path, "runs and labels disagree")
