@@ -23,7 +23,7 @@ import numpy as np
 from .._shared import label_sets
 from .._shared.mapped import read_mapped, search_mapped
 from .._shared.threads import on_threads
-from .normals import SurfaceNormals, octahedral_decode, octahedral_encode
+from .normals import SurfaceNormals, octahedral_decode, octahedral_encode, surface_band
 from .segments import Segments, encode_labels, ranges
 
 FACTORS = (2, 4, 8)          # the levels a .vxs keeps beside its own voxels: level k is 2**k times coarser
@@ -74,37 +74,38 @@ def coarser(segments, factor=2):
     if segments.normals is not None:
         segments.normals.check()
 
-    def group(bounds):                                    # a group of whole coarse slices, on a thread
+    groups = _slice_groups(segments, factor)
+
+    def runs_of(bounds):                                  # a group of whole coarse slices, on a thread
         first, last = bounds
         rows, starts, ends, labels = _binned_runs(segments, offsets, first, last, factor, shape)
         begin = first // factor * cny
         counts = np.bincount(rows - begin, minlength=((last - 1) // factor + 1) * cny - begin)
-        normals = None if segments.normals is None else \
-            _binned_normals(segments.normals, first, last, factor, shape, (rows, starts, ends))
         return begin, counts, starts.astype(np.int32), ends.astype(np.int32), \
-            None if segments.labels is None else labels.astype(np.uint16), normals
+            None if segments.labels is None else labels.astype(np.uint16)
 
     counts = np.zeros(shape[0] * cny, np.int64)
-    kept = {"starts": [], "ends": [], "labels": [], "index": [], "packed": []}
-    for begin, own, starts, ends, labels, normals in on_threads(group, _slice_groups(segments, factor)):
+    kept = {"starts": [], "ends": [], "labels": []}
+    for begin, own, starts, ends, labels in on_threads(runs_of, groups):
         counts[begin:begin + len(own)] = own
         kept["starts"].append(starts)
         kept["ends"].append(ends)
         kept["labels"].append(labels)
-        if normals is not None:
-            kept["index"].append(normals[0])
-            kept["packed"].append(normals[1])
     coarse_offsets = np.zeros(len(counts) + 1, np.int64)
     np.cumsum(counts, out=coarse_offsets[1:])
-    starts, ends = (np.concatenate(kept[name]) for name in ("starts", "ends"))
-    normals = None
+    result = Segments(shape, *(np.concatenate(kept[name]) for name in ("starts", "ends")), coarse_offsets,
+                      tuple(float(s) * factor for s in segments.spacing), meta, None,
+                      None if segments.labels is None else np.concatenate(kept["labels"]))
     if segments.normals is not None:
+        # then the normals, group by group, of the coarse surface (which the coarse runs of the slices beside a
+        # group decide)
+        found = on_threads(lambda bounds: _binned_normals(segments.normals, *bounds, factor, result), groups)
         source = segments.normals.source.split(", summed over")[0]
         f = meta["level_factor"]
-        normals = SurfaceNormals(shape, np.concatenate(kept["index"]),
-                                 np.concatenate(kept["packed"]), f"{source}, summed over {f}x{f}x{f} voxels")
-    return Segments(shape, starts, ends, coarse_offsets, tuple(float(s) * factor for s in segments.spacing), meta,
-                    normals, None if segments.labels is None else np.concatenate(kept["labels"]))
+        result.normals = SurfaceNormals(shape, np.concatenate([index for index, _ in found]),
+                                        np.concatenate([packed for _, packed in found]),
+                                        f"{source}, summed over {f}x{f}x{f} voxels")
+    return result
 
 
 def build_levels(segments, factors=FACTORS):
@@ -209,34 +210,45 @@ def _painted(rows, starts, ends, labels, width):
     return np.repeat(present, repeats), painted.starts, painted.ends, painted.labels
 
 
-def _binned_normals(normals, first, last, factor, shape, runs):
-    """The normals of the coarse voxels of fine slices ``first .. last - 1`` that are in the coarse object (``runs``:
-    its rows, starts and ends there, sorted) and hold fine band voxels: the unit sum of theirs (a coarse voxel whose
-    fine normals cancel has none).  The empty side of the coarse surface keeps none: a hit point's normal comes from
-    the object's side (:meth:`voxrender.object.normals.SurfaceNormals.at` weighs the corners that have one), and the
+def _binned_normals(normals, first, last, factor, coarse):
+    """The normals of the coarse surface's voxels in fine slices ``first .. last - 1``: the coarse object's voxels
+    with an empty 6-neighbour (:func:`~voxrender.object.normals.surface_band`), as the full resolution keeps the
+    band, each the unit sum of the normals of its fine voxels (a voxel without fine normals, or whose fine normals
+    cancel, has none).  The empty side of the coarse surface keeps none: a hit point's normal comes from the
+    object's side (:meth:`voxrender.object.normals.SurfaceNormals.at` weighs the corners that have one), and the
     file is smaller.  Returns their sorted voxel numbers and packed normals.
     """
     nz, ny, nx = normals.shape
-    _, cny, cnx = shape
+    cnz, cny, cnx = coarse.shape
     plane = ny * nx
     lo, hi = (int(v) for v in search_mapped(normals.index, [first * plane, last * plane]))
     fine = read_mapped(normals.index, lo, hi).astype(np.int64)
     z, rest = np.divmod(fine, plane)
     y, x = np.divmod(rest, nx)
     # summed on the dense grid of the group's coarse slices (bincount: no sort of the fine voxels)
-    base = first // factor * cny * cnx
+    bottom, top = first // factor, (last - 1) // factor + 1
+    base = bottom * cny * cnx
     local = (z // factor * cny + y // factor) * cnx + x // factor - base
-    cells = ((last - 1) // factor - first // factor + 1) * cny * cnx
+    cells = (top - bottom) * cny * cnx
     present = np.flatnonzero(np.bincount(local, minlength=cells))
-    voxels = present + base
     unit = octahedral_decode(read_mapped(np.asarray(normals.packed).reshape(-1), 2 * lo, 2 * hi).reshape(-1, 2))
     total = np.stack([np.bincount(local, weights=unit[:, k], minlength=cells)[present] for k in range(3)], axis=1)
     length = np.sqrt(np.einsum("nk,nk->n", total, total))
-    rows, starts, ends = runs
-    row, column = np.divmod(voxels, cnx)
-    run = np.searchsorted(rows * (cnx + 1) + starts, row * (cnx + 1) + column, "right") - 1
-    safe = np.maximum(run, 0)
-    inside = (run >= 0) & (rows[safe] == row) & (ends[safe] >= column) if len(rows) else np.zeros(len(voxels), bool)
-    kept = (length > 1e-6) & inside
-    index_type = np.int32 if np.prod(shape, dtype=np.int64) < 2 ** 31 else np.int64
-    return voxels[kept].astype(index_type), octahedral_encode(total[kept] / length[kept, None])
+    below, above = max(bottom - 1, 0), min(top + 1, cnz)          # the slices beside, for the band's neighbours
+    solid = _decoded(coarse, below, above)
+    surface = (surface_band(solid) & solid)[bottom - below:top - below].reshape(-1)
+    kept = (length > 1e-6) & surface[present]
+    index_type = np.int32 if np.prod(coarse.shape, dtype=np.int64) < 2 ** 31 else np.int64
+    return (present[kept] + base).astype(index_type), octahedral_encode(total[kept] / length[kept, None])
+
+
+def _decoded(segments, first, last):
+    """Slices ``first .. last - 1`` of ``segments`` as a bool mask ``[z, y, x]``."""
+    nz, ny, nx = segments.shape
+    lo, hi = int(segments.offsets[first * ny]), int(segments.offsets[last * ny])
+    counts = np.diff(segments.offsets[first * ny:last * ny + 1])
+    rows = np.repeat(np.arange(first * ny, last * ny, dtype=np.int64), counts)
+    starts, ends = np.asarray(segments.starts[lo:hi], np.int64), np.asarray(segments.ends[lo:hi], np.int64)
+    mask = np.zeros((last - first) * ny * nx, bool)
+    mask[ranges((rows - first * ny) * nx + starts, ends - starts + 1)] = True
+    return mask.reshape(last - first, ny, nx)
