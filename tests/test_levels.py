@@ -272,3 +272,26 @@ def test_a_file_without_levels_keeps_the_layout_it_always_had(tmp_path):
     fine.levels = levels.build_levels(fine)
     vxs.save(fine, tmp_path / "b.vxo", sections)
     assert list(vxs.read_sections(tmp_path / "b.vxo")[0]["arrays"])[:len(names)] == names     # levels after
+
+
+def test_a_level_whose_runs_leave_its_grid_is_refused_when_drawn(tmp_path):
+    """In a file with levels each object's runs are checked when first drawn (a picture from one level reads no
+    other's): a damaged level loads, is one line and exit 2 when drawn, and the others draw."""
+    from test_segments import _rewritten
+
+    mask = torus()
+    fine = segments.encode(mask, meta={"threshold": 1})
+    fine.levels = levels.build_levels(fine)
+    vxs.save(fine, tmp_path / "a.vxs")
+    ends = np.asarray(fine.levels[0].ends).copy()
+    ends[0] = 99
+    _rewritten(tmp_path / "a.vxs", lambda header: None, {"level1.ends": ends})
+    loaded = vxs.load(tmp_path / "a.vxs")
+    assert loaded.unchecked is not None and loaded.levels[0].unchecked is not None
+    with pytest.raises(InputError, match="runs leave their grid"):
+        render(loaded.levels[0], View(size=(8, 8)))
+    assert_bad_input(run("render", tmp_path / "a.vxs", "--level", "1", "-o", tmp_path / "x.png"), "damaged")
+    assert not (tmp_path / "x.png").exists()
+    for level in ("0", "2"):
+        result = run("render", tmp_path / "a.vxs", "--level", level, "-o", tmp_path / f"{level}.png")
+        assert result.exit_code == 0, result.output

@@ -166,9 +166,12 @@ def render(segments, view, method=DEFAULT_METHOD, progress=None, supersample=2, 
     (16, 16)
     """
     record = method_record(method, options)
-    if hasattr(segments, "octree") and hasattr(segments, "segments"):      # an Encoded, which keeps its octree
-        tree = segments.octree() if record.octree and tree is None else tree
-        segments = segments.segments
+    encoded = segments if hasattr(segments, "octree") and hasattr(segments, "segments") else None
+    if encoded is not None:                                   # an Encoded, which keeps its octree
+        segments = encoded.segments
+    segments.check()                                          # a file's runs, before they index anything
+    if encoded is not None:
+        tree = encoded.octree() if record.octree and tree is None else tree
     if not segments.segment_count:
         raise InputError("the object is empty: no voxel reaches the threshold")
     if fit not in ("object", "volume"):

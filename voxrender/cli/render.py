@@ -65,14 +65,14 @@ def render_command(input_path, output_path, **options):
         loaded = study.encoded
     else:
         loaded = load_segments(input_path, read, prep_options_of(options), progress)
-    view = render_options.view(*angles)
+    view, drawn_from = render_options.view(*angles), None
     if loaded.segments.levels:         # a .vxs with levels of detail: --level, or the one that suits the picture
         level, view = level_for(loaded.segments, view, render_options, read.level)
         if level:
             drawn = loaded.segments.at_level(level)
-            click.echo(f"note: drawn from level {level} of {input_path}: voxels {drawn.meta['level_factor']} times "
-                       f"larger, {'x'.join(map(str, drawn.shape[::-1]))}" +
-                       ("" if read.level is not None else ", the coarsest no larger than a pixel"), err=True)
+            drawn_from = (f"note: drawn from level {level} of {input_path}: voxels {drawn.meta['level_factor']} "
+                          f"times larger, {'x'.join(map(str, drawn.shape[::-1]))}" +
+                          ("" if read.level is not None else ", the coarsest no larger than a pixel"))
         loaded = loaded.at_level(level)
     elif read.level and is_segments_file(input_path):
         loaded.segments.at_level(read.level)               # refused: the file keeps no levels
@@ -84,3 +84,5 @@ def render_command(input_path, output_path, **options):
                      octree_for(render_options.method, loaded, max_memory), study=study)
     result.seconds = {**loaded.seconds, **result.seconds}
     write_outputs(result, outputs, {**about(loaded.segments), **joins})   # an empty picture was warned of
+    if drawn_from:                                          # once drawn: bad input stays one line
+        click.echo(drawn_from, err=True)

@@ -71,6 +71,7 @@ def coarser(segments, factor=2):
         meta.setdefault("label_ml", {str(k): label_sets.millilitres(v, segments.spacing) for k, v in own.items()})
     offsets = np.asarray(segments.offsets)
     cny = shape[1]
+    segments.check()
     if segments.normals is not None:
         segments.normals.check()
 

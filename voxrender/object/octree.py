@@ -329,6 +329,7 @@ def build_from_segments(segments):
     """The region octree of run-length :class:`~voxrender.object.segments.Segments`, without making their mask: the
     work and memory grow with the object, not with the octree's cube.
     """
+    segments.check()
     ny = segments.shape[1]
     row, x = expand_runs(segments.run_rows(), segments.starts, segments.ends)
     return _build(_interleave(x, row % ny, row // ny), segments.shape)

@@ -71,6 +71,16 @@ class Segments:
     normals: object = field(default=None, repr=False, compare=False)   # SurfaceNormals, kept in the .vxs
     labels: np.ndarray | None = field(default=None, repr=False)      # uint16, one per run (multi-label objects)
     levels: tuple = field(default=(), repr=False, compare=False)      # coarser Segments (object.levels)
+    unchecked: object = field(default=None, repr=False, compare=False)   # a file's check, made on first use
+
+    def check(self):
+        """Run the check a file's object was loaded with (that its runs lie on its grid), once: the renderers and
+        builders call it before they index with the runs.  A file with levels defers it, so that a picture drawn
+        from one level reads no other level's runs.
+        """
+        pending, self.unchecked = self.unchecked, None
+        if pending is not None:
+            pending()
 
     @property
     def segment_count(self):
@@ -149,6 +159,7 @@ class Segments:
         >>> s.only(5).starts.tolist(), s.only(5).labels
         ([3, 5], None)
         """
+        self.check()
         keep = np.isin(np.asarray(self.labels), np.atleast_1d(labels))
         kept_before = np.concatenate([[0], np.cumsum(keep)])      # runs kept before each run
         offsets = kept_before[np.asarray(self.offsets)]

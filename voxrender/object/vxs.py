@@ -165,7 +165,8 @@ def load(path):
 def from_sections(header, arrays, path):
     """The :class:`Segments` of a ``.vxs`` file's header and arrays (:func:`read_sections`), checked: runs that
     leave their grid or an index that does not add up is a damaged file, not a renderer's error later.  The
-    coarser levels it keeps are checked alike and hang on its ``levels``.
+    coarser levels it keeps are checked alike and hang on its ``levels``; in a file with levels, whether each
+    object's runs lie on its grid is checked when it is first drawn, so a picture from one level reads no other's.
     """
     meta = header.get("meta", {})
     if not isinstance(meta, dict):
@@ -174,7 +175,7 @@ def from_sections(header, arrays, path):
     if not isinstance(kept, list) or not all(isinstance(level, dict) for level in kept):
         raise _damaged(path, "its levels are not a list of grids")
     found = _object_of(header.get("shape"), header.get("spacing"),
-                       {key: value for key, value in meta.items() if key != "levels"}, arrays, path)
+                       {key: value for key, value in meta.items() if key != "levels"}, arrays, path, bool(kept))
     plain = {key: value for key, value in meta.items() if key not in ("levels", "normals_from")}
     levels = []
     for k, level in enumerate(kept, 1):
@@ -183,13 +184,15 @@ def from_sections(header, arrays, path):
         differs = level.get("meta") or {}
         if not isinstance(differs, dict):
             raise _damaged(path, f"the meta of its level {k} is not a table of names")
-        levels.append(_object_of(level.get("shape"), level.get("spacing"), {**plain, **differs}, own, path))
+        levels.append(_object_of(level.get("shape"), level.get("spacing"), {**plain, **differs}, own, path, True))
     found.levels = tuple(levels)
     return found
 
 
-def _object_of(shape, spacing, meta, arrays, path):
-    """One checked object of a file (its own, or a level's): see :func:`from_sections`."""
+def _object_of(shape, spacing, meta, arrays, path, deferred=False):
+    """One checked object of a file (its own, or a level's): see :func:`from_sections`; with ``deferred``, its
+    runs are checked when first drawn (:meth:`~voxrender.object.segments.Segments.check`).
+    """
     if not (isinstance(shape, list) and len(shape) == 3 and all(type(n) is int and n > 0 for n in shape)):
         raise _damaged(path, f"its shape {shape!r} is not three positive sizes")
     shape = tuple(shape)
@@ -211,8 +214,12 @@ def _object_of(shape, spacing, meta, arrays, path):
         first, last = pair
         return bool(first.size and (first.min() < 0 or last.max() >= shape[2] or np.any(first > last)))
 
-    if any(on_threads(off_grid, zip(blocks(starts), blocks(ends), strict=True))):
-        raise _damaged(path, "runs leave their grid")
+    def check_runs():
+        if any(on_threads(off_grid, zip(blocks(starts), blocks(ends), strict=True))):
+            raise _damaged(path, "runs leave their grid")
+
+    if not deferred:
+        check_runs()
     normals = None
     if "normal_index" in arrays:                 # files written before normals were kept have none
         index, packed = arrays["normal_index"], arrays.get("normal_packed", np.zeros(1, np.int16))
@@ -228,5 +235,6 @@ def _object_of(shape, spacing, meta, arrays, path):
     labels = arrays.get("labels")           # single-object files have none
     if labels is not None and labels.size != starts.size:
         raise _damaged(path, "runs and labels disagree")
-    return Segments(shape, starts, ends, offsets, tuple(spacing), meta, normals, labels)
+    return Segments(shape, starts, ends, offsets, tuple(spacing), meta, normals, labels,
+                    unchecked=check_runs if deferred else None)
 
