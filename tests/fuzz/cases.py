@@ -893,6 +893,7 @@ FORMATS = {
     "npy": Format(seeds.npy, _npy_header),
     "vxs": Format(seeds.segments_file, _vxs_header),
     "vxo": Format(seeds.segments_octree, _vxs_header),
+    "vxs-levels": Format(seeds.segments_levels, _vxs_header),
     "zarr": Format(seeds.zarr_array, _zarr_header, versions=({"zarr_format": 2}, {"zarr_format": 3})),
     "ome-zarr": Format(seeds.ome_zarr, _ome_zarr_header, versions=(
         {"version": "0.4", "levels": 2}, {"version": "0.4", "levels": 3}, {"version": "0.5", "levels": 2},

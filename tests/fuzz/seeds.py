@@ -308,8 +308,9 @@ def npy(case, values, spacing=SPACING, direction=None):
     return Seed(f"{INPUT}/{path.name}", files=[path])
 
 
-def segments_file(case, values, spacing=SPACING, direction=None, octree=False):
-    """voxrender's own ``.vxs`` (or ``.vxo``, with its octree), written by ``Encoded.save``."""
+def segments_file(case, values, spacing=SPACING, direction=None, octree=False, levels=False):
+    """voxrender's own ``.vxs`` (or ``.vxo``, with its octree; with ``levels``, its levels of detail), written by
+    ``Encoded.save``."""
     from voxrender.io import Volume
     from voxrender.object.pipeline import Encoded, PrepOptions, encode_volume
 
@@ -319,12 +320,17 @@ def segments_file(case, values, spacing=SPACING, direction=None, octree=False):
         values, spacing, _ = phantom_stored()
         finite = values
     threshold = float(finite.max())             # at least the brightest voxels are the object
-    Encoded(encode_volume(Volume(values, spacing), PrepOptions(threshold=threshold))).save(path, octree=octree)
+    Encoded(encode_volume(Volume(values, spacing), PrepOptions(threshold=threshold))).save(path, octree=octree,
+                                                                                           levels=levels)
     return Seed(f"{INPUT}/{path.name}", files=[path])
 
 
 def segments_octree(case, values, spacing=SPACING, direction=None):
     return segments_file(case, values, spacing, direction, octree=True)
+
+
+def segments_levels(case, values, spacing=SPACING, direction=None):
+    return segments_file(case, values, spacing, direction, levels=True)
 
 
 MANIFEST_ROWS = [{"input": "x.nii", "threshold": "500", "views": "anterior;0,30,0", "method": "ftb",
