@@ -28,6 +28,7 @@ depth image and the same statistics, MERGE cases included.
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -425,15 +426,21 @@ def render_ftb(segments, view, progress=None, clip=None, items=False):
     boxes, boxes_before = [], 0
     # The slabs a group at a time, front to back: the dynamic screen goes on from one group to the next, so the
     # picture and the counts are those of one pass, while only one group's runs and spans are in memory.
+    # The spans of a group do not depend on the screen: the next group's are found on a thread while this
+    # group's are merged (NumPy lets go of Python's lock in its passes).
     bounds = _slab_groups(segments, plan)
     group_of_last_slab = dict(zip((bounds[1:] - 1).tolist(), bounds[:-1].tolist(), strict=True))
+    groups = iter([slice(low, high) for low, high in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True)])
     positions = range(len(plan.outer_order))
-    for position in (progress(positions, len(positions), "ftb") if progress else positions):
-        if position in group_of_last_slab:
-            screen, lit = _render_slabs(segments, plan, clip, slice(group_of_last_slab[position], position + 1),
-                                        screen, stats, cases, depth, owner_image, boxes_before)
-            boxes.append(lit)
-            boxes_before += len(lit)
+    with ThreadPoolExecutor(1) as ahead:
+        coming = ahead.submit(_slab_spans, segments, plan, clip, next(groups, None), stride)
+        for position in (progress(positions, len(positions), "ftb") if progress else positions):
+            if position in group_of_last_slab:
+                spans = coming.result()
+                coming = ahead.submit(_slab_spans, segments, plan, clip, next(groups, None), stride)
+                screen, lit = _merge_slabs(spans, plan, screen, stats, cases, depth, owner_image, boxes_before)
+                boxes.append(lit)
+                boxes_before += len(lit)
     stats["unlit_segments_end"] = len(screen[0])
     stats["cases"] = {str(c): int(cases[c]) for c in CASES}
     depth = depth.reshape(height, width).astype(np.float32)
@@ -443,19 +450,35 @@ def render_ftb(segments, view, progress=None, clip=None, items=False):
     return depth, stats
 
 
-def _render_slabs(segments, plan, clip, outer, screen, stats, cases, depth, owner_image, boxes_before):
-    """Merge the runs of the slabs ``plan.outer_order[outer]`` into the dynamic screen ``(lo, hi)``, front to
-    back, painting ``depth`` and ``owner_image`` and adding to ``stats`` and ``cases``.  Returns the screen left
-    and the boxes (centre x, y, z and half-length) of the runs that lit pixels, numbered in ``owner_image`` from
-    ``boxes_before`` on.
+@dataclass
+class _Spans:
+    """The runs of a group of slabs and their spans on the scanlines, in merge order (:func:`_merge_order`)."""
+
+    slab: np.ndarray          # per run: slab and row position, z, y, start and end, box centre and half-length
+    row: np.ndarray
+    z: np.ndarray
+    y: np.ndarray
+    starts: np.ndarray
+    ends: np.ndarray
+    xc: np.ndarray
+    yc: np.ndarray
+    zc: np.ndarray
+    half_x: np.ndarray
+    line: np.ndarray          # per span: scanline, run, MERGE call and rank, first and last key
+    run: np.ndarray
+    call: np.ndarray
+    rank: np.ndarray
+    key_first: np.ndarray
+    key_last: np.ndarray
+
+
+def _slab_spans(segments, plan, clip, outer, stride):
+    """The :class:`_Spans` of the slabs ``plan.outer_order[outer]`` (``None`` for none): what merging them needs
+    that does not depend on the dynamic screen.
     """
-    lo, hi = screen
-    width = plan.size[1]
-    stride = width + 2
+    if outer is None:
+        return None
     slab, row, z, y, starts, ends = _front_to_back_runs(segments, plan, clip, outer)
-    stats["slices_read"] += _distinct_count(slab)          # both come in order: count their changes
-    stats["rows_read"] += _distinct_count(row)
-    stats["segments_read"] += len(starts)
     xc, yc, zc, half_x = plan.centres(z, y, starts, ends)
     line_first, line_last = plan.scanlines(yc)
     line, run = ranges(line_first, np.maximum(line_last - line_first + 1, 0), owners=True)
@@ -466,6 +489,25 @@ def _render_slabs(segments, plan, clip, outer, screen, stats, cases, depth, owne
     order, call, rank = _merge_order(line, row[run], span_first)
     line, run, span_first, span_last = line[order], run[order], span_first[order], span_last[order]
     key_first, key_last = line * stride + span_first + 1, line * stride + span_last + 1
+    return _Spans(slab, row, z, y, starts, ends, xc, yc, zc, half_x, line, run, call, rank, key_first, key_last)
+
+
+def _merge_slabs(spans, plan, screen, stats, cases, depth, owner_image, boxes_before):
+    """Merge the runs of a group of slabs (their :class:`_Spans`) into the dynamic screen ``(lo, hi)``, front to
+    back, painting ``depth`` and ``owner_image`` and adding to ``stats`` and ``cases``.  Returns the screen left
+    and the boxes (centre x, y, z and half-length) of the runs that lit pixels, numbered in ``owner_image`` from
+    ``boxes_before`` on.
+    """
+    lo, hi = screen
+    width = plan.size[1]
+    stride = width + 2
+    slab, row, z, y, starts, ends = spans.slab, spans.row, spans.z, spans.y, spans.starts, spans.ends
+    xc, yc, zc, half_x = spans.xc, spans.yc, spans.zc, spans.half_x
+    line, run, call, rank = spans.line, spans.run, spans.call, spans.rank
+    key_first, key_last = spans.key_first, spans.key_last
+    stats["slices_read"] += _distinct_count(slab)          # both come in order: count their changes
+    stats["rows_read"] += _distinct_count(row)
+    stats["segments_read"] += len(starts)
     unlit_start = len(lo)
     counts, unlit_before, painted, lo, hi = _merge_all(lo, hi, line, rank, key_first, key_last, stride)
     cases += counts
