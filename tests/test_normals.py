@@ -1,6 +1,7 @@
 """Grey-level gradient normals: accuracy on a ball, the .vxs keeps them, every method gets the same."""
 
 import itertools
+import os
 
 import numpy as np
 import pytest
@@ -9,6 +10,7 @@ from scipy.special import erf
 
 from voxrender._render import render
 from voxrender._shared.mapped import is_mapped, read_mapped
+from voxrender._shared.threads import on_threads
 from voxrender.object import normals, segments, vxs
 from voxrender.pictures.shade import depth_normals as depth_gradient_normals
 from voxrender.space.view import View
@@ -146,9 +148,11 @@ def test_each_point_of_overlapping_stencils_is_sampled_once_with_its_own_value(s
     assert spread > 1 or distinct < 500 * 27 / 3                # worth it: most points are shared
 
 
-# a binary search of the index (few points, or a small object in a vast volume); its bitmap (many points)
-@pytest.mark.parametrize("count, vast", [(6, False), (300, False), (300, True)])
-def test_normals_at_points_are_the_trilinear_blend_of_the_corners_present(count, vast):
+# a binary search of the index (few points, or a small object in a vast volume); its bitmap (many points); the
+# points shared out among threads
+@pytest.mark.parametrize("count, vast, threaded", [(6, False, False), (300, False, False), (300, True, False),
+                                                   (300, False, True), (300, True, True)])
+def test_normals_at_points_are_the_trilinear_blend_of_the_corners_present(count, vast, threaded, monkeypatch):
     # a literal oracle: point by point, the eight voxel centres around it, each weighed when it has a normal
     mask = np.random.default_rng(11).random((6, 7, 8)) < 0.5
     if vast:                                                 # the object in a corner of a large volume
@@ -160,8 +164,14 @@ def test_normals_at_points_are_the_trilinear_blend_of_the_corners_present(count,
                                                (count, 3))
     points[:count // 10] = np.floor(points[:count // 10])    # on voxel centres: some corners weigh 0
     points[-1] = [-0.5, 0.2, 0.3]                            # x = -1 and 0 around it: rows' ends
+    shared = []
+    if threaded:
+        monkeypatch.setattr(normals, "THREAD_VOXELS", 40)
+        monkeypatch.setattr(normals, "on_threads", lambda work, parts: shared.append(len(parts)) or
+                            on_threads(work, parts))
     got = field.at(points)
     assert ("_bitmap" in field.__dict__) == (count > 100 and not vast)
+    assert shared == ([min(os.cpu_count(), 7)] if threaded else [])
     for point, normal in zip(points, got, strict=True):
         total = np.zeros(3)
         base = np.floor(point).astype(int)

@@ -274,9 +274,10 @@ def _merge_layout(line, rank, key_first, key_last, stride):
     before = np.maximum(base, np.concatenate([[0], np.maximum.accumulate(key_last + lift)[:-1]]) - lift)
     paint_lo = np.maximum(key_first, before + 1)
     reach = base + 1 + (paint_lo <= key_last) * (key_last - base)
-    lo_keys = np.stack([reach, key_first, base + stride])
-    hi_keys = np.stack([key_first, key_last, key_last + 1, base])
-    return np.flatnonzero(np.concatenate([step_start, [True]])), call, before, paint_lo, lo_keys, hi_keys
+    lo_keys = np.stack([reach, key_first])
+    hi_keys = np.stack([key_first, key_last])
+    call_base = base[first]                                # a call's scanline, searched once for all its spans
+    return np.flatnonzero(np.concatenate([step_start, [True]])), call, before, paint_lo, lo_keys, hi_keys, call_base
 
 
 def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
@@ -300,14 +301,15 @@ def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
     """
     if not len(line):
         return np.zeros(9, np.int64), np.zeros(0, np.int64), None, lo, hi
-    bounds, call, before, paint_lo, lo_keys, hi_keys = _merge_layout(line, rank, key_first, key_last, stride)
+    layout = _merge_layout(line, rank, key_first, key_last, stride)
+    bounds, call, before, paint_lo, lo_keys, hi_keys, call_base = layout
     # (counts of segments: int32 holds them, at half the memory of a group's many spans)
-    found_lo, found_hi = np.empty(lo_keys.shape, np.int32), np.empty(hi_keys.shape, np.int32)
+    found_lo, found_hi = np.empty((3, len(line)), np.int32), np.empty((4, len(line)), np.int32)
     pointer = np.empty(len(line), np.int32)
     spans, pieces_lo, pieces_hi = [], [], []
     for s in range(len(bounds) - 1):
         a, b = bounds[s], bounds[s + 1]
-        on_lo, on_hi = np.searchsorted(lo, lo_keys[:, a:b]), np.searchsorted(hi, hi_keys[:, a:b])
+        on_lo, on_hi = _batch_searches(lo, hi, lo_keys[:, a:b], hi_keys[:, a:b], call[a:b], call_base, stride)
         # the first unlit segment ending after M: the one after M's own, or the scanline's first
         np.maximum(on_hi[3], np.concatenate([[0], np.maximum.accumulate(on_hi[2])[:-1]]), out=pointer[a:b])
         paint_from = np.maximum(on_hi[0], pointer[a:b])
@@ -353,6 +355,24 @@ def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
     counts[6] += int(covered.sum() - case7.sum())
     painted = (np.concatenate(spans), np.concatenate(pieces_lo), np.concatenate(pieces_hi)) if spans else None
     return counts, scan_end - scan_start, painted, lo, hi
+
+
+def _batch_searches(lo, hi, lo_keys, hi_keys, call, call_base, stride):
+    """Where a batch's keys fall among the unlit starts ``lo`` and ends ``hi``: in ``lo``, each span's reach, its
+    first key and its scanline's end; in ``hi``, its first and last keys, the key after its last and its
+    scanline's start (the rows of :func:`_merge_layout`'s keys, and two per scanline, each searched once for
+    the spans of its call; the key after the last is the last's place, one on when ``hi`` holds the last).
+    """
+    on_lo, on_hi = np.empty((3, len(call)), np.int64), np.empty((4, len(call)), np.int64)
+    on_lo[:2], on_hi[:2] = np.searchsorted(lo, lo_keys), np.searchsorted(hi, hi_keys)
+    own = call - call[0]                                   # the batch's calls are numbered one after another
+    bases = call_base[call[0]:call[-1] + 1]
+    on_lo[2] = np.searchsorted(lo, bases + stride)[own]
+    on_hi[3] = np.searchsorted(hi, bases)[own]
+    on_hi[2] = on_hi[1]
+    if len(hi):
+        on_hi[2] += hi[np.minimum(on_hi[1], len(hi) - 1)] == hi_keys[1]
+    return on_lo, on_hi
 
 
 def _count_peak(stats, start, lo, call, line, span_slab, unlit_before, stride):

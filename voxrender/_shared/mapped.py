@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 
@@ -25,6 +27,30 @@ def _mapping(array):
     while array is not None and not isinstance(array, np.memmap):
         array = getattr(array, "base", None)
     return array
+
+
+def prefetch(*arrays):
+    """Ask the system to read the files behind memory-mapped ``arrays`` into its page cache, in the background
+    (``posix_fadvise`` ``WILLNEED``), so that the disk reads them while the caller computes; plain arrays are
+    left alone.  Nothing is read into this process's memory.
+    """
+    if not hasattr(os, "posix_fadvise"):
+        return
+    for array in arrays:
+        mapping = _mapping(array)
+        if mapping is None or mapping.filename is None or not array.size:
+            continue
+        start = mapping.offset + array.__array_interface__["data"][0] - mapping.__array_interface__["data"][0]
+        try:
+            descriptor = os.open(mapping.filename, os.O_RDONLY)
+        except OSError:
+            continue
+        try:
+            os.posix_fadvise(descriptor, start, array.nbytes, os.POSIX_FADV_WILLNEED)
+        except OSError:
+            pass                 # only advice: the reads come anyway
+        finally:
+            os.close(descriptor)
 
 
 def read_mapped(array, first, last):

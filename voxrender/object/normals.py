@@ -21,7 +21,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .._shared.mapped import is_mapped, read_mapped
+from .._shared.mapped import is_mapped, prefetch, read_mapped
 from .._shared.threads import on_threads
 from .segments import label_at
 
@@ -166,6 +166,12 @@ class SurfaceNormals:
         if pending is not None:
             pending()
 
+    def prefetch(self):
+        """Have a file's normals read from disk in the background, when they are read through their mapping (no
+        larger than ``RESIDENT_BYTES``): a picture's look-ups reach most of their pages.
+        """
+        prefetch(*(array for array in (self.index, self.packed) if array.nbytes <= RESIDENT_BYTES))
+
     @cached_property
     def unit(self):
         """All the unit normals, decoded: x, y and z rows ``(3, M)`` float32."""
@@ -208,6 +214,21 @@ class SurfaceNormals:
         index = np.asarray(self.index)                                    # a plain array, not a memory map
         if not len(index) or not len(points):
             return np.full((len(points), 3), np.nan, np.float32)
+        many = "unit" in self.__dict__ or 8 * len(points) >= len(index)      # as many corners as normals
+        # the bitmap grows with the volume, not the object: a small object in a vast volume keeps the search
+        bitmap = many and ("_bitmap" in self.__dict__ or nz * ny * nx // 64 <= 16 * len(index))
+        if len(points) < 2 * THREAD_VOXELS:
+            return self._interpolate(points, index, many, bitmap)
+        if many:                       # what the threads share, made once before them
+            _ = self.unit, self._bitmap if bitmap else None
+        parts = np.array_split(points, min(os.cpu_count() or 1, len(points) // THREAD_VOXELS))
+        return np.concatenate(on_threads(lambda part: self._interpolate(part, index, many, bitmap), parts))
+
+    def _interpolate(self, points, index, many, bitmap):
+        """:meth:`at` of ``points``, the normals decoded all at once (``many``, from the ``bitmap`` or a search)
+        or only at the points' corners.
+        """
+        nz, ny, nx = self.shape
         base = np.floor(points).astype(np.int64)
         x, y, z = base.T
         # the weights of the two voxel centres around each point along each axis; 0 for one off the volume, so
@@ -221,9 +242,7 @@ class SurfaceNormals:
         # right after voxel x (or at x's place if x is absent)
         linear = ((z + dz) * ny + (y + dy)) * nx + x                                 # (4, N)
         top = len(index) - 1
-        many = "unit" in self.__dict__ or 8 * len(points) >= len(index)      # as many corners as normals
-        # the bitmap grows with the volume, not the object: a small object in a vast volume keeps the search
-        if many and ("_bitmap" in self.__dict__ or nz * ny * nx // 64 <= 16 * len(index)):
+        if bitmap:
             # looked up in the bitmap, made once for every later picture
             slot, there = self._place(linear)
             after, there_next = slot + there, self._place(linear + 1)[1]

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._shared.mapped import prefetch
 from ..errors import InputError
 
 
@@ -81,6 +82,12 @@ class Segments:
         pending, self.unchecked = self.unchecked, None
         if pending is not None:
             pending()
+
+    def prefetch(self):
+        """Have a file's runs read from disk in the background (:func:`~voxrender._shared.mapped.prefetch`): a
+        picture reads them all, and meanwhile there is work to do.
+        """
+        prefetch(self.offsets, self.starts, self.ends)
 
     @property
     def segment_count(self):

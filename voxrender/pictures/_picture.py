@@ -194,6 +194,10 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
     options = options or RenderOptions()
     if options.drawn.grey_values:
         return _projection(segments, view, options, study, progress)
+    drawn = getattr(segments, "segments", segments)
+    drawn.prefetch()                     # a file's runs, and the normals the shading looks up, read meanwhile
+    if options.shading == "gradient" and (normals or drawn.normals) is not None:
+        (normals or drawn.normals).prefetch()
     image = render(segments, view, options.method, progress, options.supersample, options.clip, options.fit,
                    tree, **options.method_options)
     segments = getattr(segments, "segments", segments)
