@@ -36,7 +36,7 @@ import numpy as np
 from ..object.segments import ranges
 from ..space.view import View
 from .btf import back_to_front
-from .geometry import box_rows, ray_box_entry, row_spans
+from .geometry import box_rows, cross_section_reach, ray_box_entry, row_spans, span_columns
 
 CASES = tuple(range(1, 9))
 
@@ -88,6 +88,18 @@ class ScreenPlan:
         """Walk-coordinate span ``[first, last]`` of boxes on scanline ``line`` (empty: first > last)."""
         first, last = row_spans(self.scanline_y(line) - yc, xc, half_x, half_y, half_z, self.view)
         return self.to_walk(first, last)
+
+    def reach(self, line, yc):
+        """How far a voxel row's cross-section reaches left and right of its centre line on scanline ``line``
+        (:func:`~voxrender._render.geometry.cross_section_reach`), for rows centred at ``Y' = yc``.
+        """
+        return cross_section_reach(self.scanline_y(line) - yc, 0.5, 0.5, self.view)
+
+    def columns(self, xc, half_x, left, right, empty):
+        """Walk-coordinate span ``[first, last]`` of runs centred at ``X' = xc`` whose row reaches ``(left, right,
+        empty)`` on the scanline (:meth:`reach`): :meth:`spans` in two halves.
+        """
+        return self.to_walk(*span_columns(xc, half_x, left, right, empty, self.view))
 
     def depth(self, line, walk_x, xc, yc, zc, half_x):
         """Depth where the ray of pixel (line, walk_x) enters the box."""
@@ -234,7 +246,8 @@ def _merge_order(line, span_row, span_first):
     if not len(line):
         return (np.zeros(0, np.int64),) * 3
     order = np.argsort(_small(line), kind="stable")          # (line, slab, row, run) order
-    line, span_row, span_first = line[order], span_row[order], span_first[order]
+    counts = np.bincount(line)                               # (scanlines from 0: the lines sorted, without a gather)
+    line, span_row, span_first = np.repeat(np.arange(len(counts)), counts), span_row[order], span_first[order]
     line_start = np.concatenate([[True], line[1:] != line[:-1]])
     call_start = line_start | np.concatenate([[False], span_row[1:] != span_row[:-1]])
     call = np.cumsum(call_start) - 1
@@ -500,9 +513,17 @@ def _slab_spans(segments, plan, clip, outer, stride):
         return None
     slab, row, z, y, starts, ends = _front_to_back_runs(segments, plan, clip, outer)
     xc, yc, zc, half_x = plan.centres(z, y, starts, ends)
-    line_first, line_last = plan.scanlines(yc)
-    line, run = ranges(line_first, np.maximum(line_last - line_first + 1, 0), owners=True)
-    span_first, span_last = plan.spans(line, xc[run], yc[run], half_x[run])
+    # A row's runs share their Y' (the view turns by alpha and beta alone): the scanlines they cross, and how far
+    # their cross-section reaches on each, are found once per row.
+    row_first = np.flatnonzero(np.concatenate([[True], row[1:] != row[:-1]])) if len(row) else row
+    line_first, line_last = plan.scanlines(yc[row_first])
+    lines = np.maximum(line_last - line_first + 1, 0)
+    row_line, row_of = ranges(line_first, lines, owners=True)
+    left, right, empty = plan.reach(row_line, yc[row_first][row_of])
+    runs_of_row = np.diff(np.append(row_first, len(row)))
+    place, run = ranges(np.repeat(np.cumsum(lines) - lines, runs_of_row), np.repeat(lines, runs_of_row), owners=True)
+    line = row_line[place]
+    span_first, span_last = plan.columns(xc[run], half_x[run], left[place], right[place], empty[place])
     keep = span_first <= span_last
     line, run, span_first, span_last = line[keep], run[keep], span_first[keep], span_last[keep]
 

@@ -169,16 +169,24 @@ def row_spans(dy, xc, half_x, half_y, half_z, view):
     With ``view.matrix[1, 0] == 0`` a box's projection is the parallelogram of its y and z edges
     swept along the horizontal projection of its x edge (the paper's Fig. 8); on one scanline
     that is an interval, computed here in closed form.  Columns outside the picture are
-    clipped; an empty span has ``first > last``.
+    clipped; an empty span has ``first > last``.  The two halves, :func:`cross_section_reach` (of ``dy``
+    alone) and :func:`span_columns`, are apart for boxes that share a cross-section.
 
     >>> from voxrender.space.view import View
     >>> row_spans(np.array([0.0]), np.array([0.0]), np.array([1.5]), 0.5, 0.5, View(size=(8, 8), scale=1.0))
     (array([2]), array([5]))
     """
+    return span_columns(xc, half_x, *cross_section_reach(dy, half_y, half_z, view), view)
+
+
+def cross_section_reach(dy, half_y, half_z, view):
+    """How far left and right of its centre line (``X'`` offsets) a box's (y, z) cross-section reaches on a
+    scanline ``dy = Y' - Yc`` away from its centre, and where it does not reach the scanline at all:
+    ``(left, right, empty)``, the first half of :func:`row_spans`.
+    """
     # Points of the (y, z) cross-section on the scanline: (a, b) = dy (R11, R12) + t (-R12, R11); X' moves by
     # t * kappa along it.  |a| <= half_y and |b| <= half_z bound t (a 2-D slab test).
     matrix = view.matrix
-    width = view.size[1]
     r11, r12 = matrix[1, 1], matrix[1, 2]
     kappa = matrix[0, 2] * r11 - matrix[0, 1] * r12
     low = np.full(np.shape(dy), -np.inf)
@@ -192,9 +200,18 @@ def row_spans(dy, xc, half_x, half_y, half_z, view):
         low, high = np.maximum(low, np.minimum(t1, t2)), np.minimum(high, np.maximum(t1, t2))
     empty = low > high
     low, high = np.where(empty, 0.0, low), np.where(empty, 0.0, high)
-    spread = np.abs(matrix[0, 0]) * (half_x + EPS)
-    left, _ = view.pixel_index(xc + np.minimum(kappa * low, kappa * high) - spread, 0.0)
-    right, _ = view.pixel_index(xc + np.maximum(kappa * low, kappa * high) + spread, 0.0)
+    return np.minimum(kappa * low, kappa * high), np.maximum(kappa * low, kappa * high), empty
+
+
+def span_columns(xc, half_x, left, right, empty, view):
+    """The second half of :func:`row_spans`: first and last pixel column of boxes centred at ``X' = xc`` with
+    half-length ``half_x`` along object x whose cross-sections reach ``(left, right, empty)``
+    (:func:`cross_section_reach`) on the scanline.
+    """
+    width = view.size[1]
+    spread = np.abs(view.matrix[0, 0]) * (half_x + EPS)
+    left, _ = view.pixel_index(xc + left - spread, 0.0)
+    right, _ = view.pixel_index(xc + right + spread, 0.0)
     first = np.maximum(np.ceil(left - EPS).astype(np.int64), 0)
     last = np.minimum(np.floor(right + EPS).astype(np.int64), width - 1)
     return np.where(empty, 1, first), np.where(empty, 0, last)
