@@ -463,17 +463,14 @@ def render_ftb(segments, view, progress=None, clip=None, items=False):
     # group's are merged (NumPy lets go of Python's lock in its passes).
     bounds = _slab_groups(segments, plan)
     group_of_last_slab = dict(zip((bounds[1:] - 1).tolist(), bounds[:-1].tolist(), strict=True))
-    groups = iter([slice(low, high) for low, high in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True)])
+    groups = [slice(low, high) for low, high in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True)]
+    found = _spans_ahead(segments, plan, clip, groups, stride)
     positions = range(len(plan.outer_order))
-    with ThreadPoolExecutor(1) as ahead:
-        coming = ahead.submit(_slab_spans, segments, plan, clip, next(groups, None), stride)
-        for position in (progress(positions, len(positions), "ftb") if progress else positions):
-            if position in group_of_last_slab:
-                spans = coming.result()
-                coming = ahead.submit(_slab_spans, segments, plan, clip, next(groups, None), stride)
-                screen, lit = _merge_slabs(spans, plan, screen, stats, cases, depth, owner_image, boxes_before)
-                boxes.append(lit)
-                boxes_before += len(lit)
+    for position in (progress(positions, len(positions), "ftb") if progress else positions):
+        if position in group_of_last_slab:
+            screen, lit = _merge_slabs(next(found), plan, screen, stats, cases, depth, owner_image, boxes_before)
+            boxes.append(lit)
+            boxes_before += len(lit)
     stats["unlit_segments_end"] = len(screen[0])
     stats["cases"] = {str(c): int(cases[c]) for c in CASES}
     depth = depth.reshape(height, width).astype(np.float32)
@@ -503,6 +500,21 @@ class _Spans:
     rank: np.ndarray
     key_first: np.ndarray
     key_last: np.ndarray
+
+
+def _spans_ahead(segments, plan, clip, groups, stride):
+    """The :class:`_Spans` of each group of slabs in turn, the next found on a thread while the caller merges
+    this one (one group alone is found here: a thread would cost more than it saves).
+    """
+    if len(groups) == 1:
+        yield _slab_spans(segments, plan, clip, groups[0], stride)
+        return
+    with ThreadPoolExecutor(1) as ahead:
+        coming = ahead.submit(_slab_spans, segments, plan, clip, groups[0], stride)
+        for following in [*groups[1:], None]:
+            spans = coming.result()
+            coming = ahead.submit(_slab_spans, segments, plan, clip, following, stride)
+            yield spans
 
 
 def _slab_spans(segments, plan, clip, outer, stride):
