@@ -314,8 +314,8 @@ def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
     """
     if not len(line):
         return np.zeros(9, np.int64), np.zeros(0, np.int64), None, lo, hi
-    layout = _merge_layout(line, rank, key_first, key_last, stride)
-    bounds, call, before, paint_lo, lo_keys, hi_keys, call_base = layout
+    bounds, call, before, paint_lo, lo_keys, hi_keys, call_base = _merge_layout(line, rank, key_first, key_last,
+                                                                                 stride)
     # (counts of segments: int32 holds them, at half the memory of a group's many spans)
     found_lo, found_hi = np.empty((3, len(line)), np.int32), np.empty((4, len(line)), np.int32)
     pointer = np.empty(len(line), np.int32)
@@ -462,12 +462,12 @@ def render_ftb(segments, view, progress=None, clip=None, items=False):
     # The spans of a group do not depend on the screen: the next group's are found on a thread while this
     # group's are merged (NumPy lets go of Python's lock in its passes).
     bounds = _slab_groups(segments, plan)
-    group_of_last_slab = dict(zip((bounds[1:] - 1).tolist(), bounds[:-1].tolist(), strict=True))
+    last_slabs = set((bounds[1:] - 1).tolist())
     groups = [slice(low, high) for low, high in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True)]
     found = _spans_ahead(segments, plan, clip, groups, stride)
     positions = range(len(plan.outer_order))
     for position in (progress(positions, len(positions), "ftb") if progress else positions):
-        if position in group_of_last_slab:
+        if position in last_slabs:
             screen, lit = _merge_slabs(next(found), plan, screen, stats, cases, depth, owner_image, boxes_before)
             boxes.append(lit)
             boxes_before += len(lit)
@@ -511,18 +511,17 @@ def _spans_ahead(segments, plan, clip, groups, stride):
         return
     with ThreadPoolExecutor(1) as ahead:
         coming = ahead.submit(_slab_spans, segments, plan, clip, groups[0], stride)
-        for following in [*groups[1:], None]:
+        for following in groups[1:]:
             spans = coming.result()
             coming = ahead.submit(_slab_spans, segments, plan, clip, following, stride)
             yield spans
+        yield coming.result()
 
 
 def _slab_spans(segments, plan, clip, outer, stride):
-    """The :class:`_Spans` of the slabs ``plan.outer_order[outer]`` (``None`` for none): what merging them needs
-    that does not depend on the dynamic screen.
+    """The :class:`_Spans` of the slabs ``plan.outer_order[outer]``: what merging them needs that does not depend
+    on the dynamic screen.
     """
-    if outer is None:
-        return None
     slab, row, z, y, starts, ends = _front_to_back_runs(segments, plan, clip, outer)
     xc, yc, zc, half_x = plan.centres(z, y, starts, ends)
     # A row's runs share their Y' (the view turns by alpha and beta alone): the scanlines they cross, and how far

@@ -40,13 +40,12 @@ def prefetch(*arrays):
         mapping = _mapping(array)
         if mapping is None or mapping.filename is None or not array.size:
             continue
-        start = mapping.offset + array.__array_interface__["data"][0] - mapping.__array_interface__["data"][0]
         try:
             descriptor = os.open(mapping.filename, os.O_RDONLY)
         except OSError:
             continue
         try:
-            os.posix_fadvise(descriptor, start, array.nbytes, os.POSIX_FADV_WILLNEED)
+            os.posix_fadvise(descriptor, _file_offset(array, mapping), array.nbytes, os.POSIX_FADV_WILLNEED)
         except OSError:
             pass                 # only advice: the reads come anyway
         finally:
@@ -62,9 +61,13 @@ def read_mapped(array, first, last):
     mapping = _mapping(array)
     if mapping is None or mapping.filename is None or not array.flags.c_contiguous:
         return np.array(array[first:last])
-    start = mapping.offset + array.__array_interface__["data"][0] - mapping.__array_interface__["data"][0]
     return np.fromfile(mapping.filename, array.dtype, count=max(last - first, 0),
-                       offset=start + first * array.itemsize)
+                       offset=_file_offset(array, mapping) + first * array.itemsize)
+
+
+def _file_offset(array, mapping):
+    """Where ``array``'s first value lies in the file behind ``mapping`` (the memory map it is a view of)."""
+    return mapping.offset + array.__array_interface__["data"][0] - mapping.__array_interface__["data"][0]
 
 
 

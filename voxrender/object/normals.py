@@ -220,7 +220,9 @@ class SurfaceNormals:
         if len(points) < 2 * THREAD_VOXELS:
             return self._interpolate(points, index, many, bitmap)
         if many:                       # what the threads share, made once before them
-            _ = self.unit, self._bitmap if bitmap else None
+            self.unit                                                     # noqa: B018 (a cached property)
+            if bitmap:
+                self._bitmap                                              # noqa: B018
         parts = np.array_split(points, min(os.cpu_count() or 1, len(points) // THREAD_VOXELS))
         return np.concatenate(on_threads(lambda part: self._interpolate(part, index, many, bitmap), parts))
 

@@ -195,12 +195,13 @@ def picture(segments, view, options=None, progress=None, tree=None, normals=None
     if options.drawn.grey_values:
         return _projection(segments, view, options, study, progress)
     drawn = getattr(segments, "segments", segments)
+    shown_normals = normals or drawn.normals
     drawn.prefetch()                     # a file's runs, and the normals the shading looks up, read meanwhile
-    if options.shading == "gradient" and (normals or drawn.normals) is not None:
-        (normals or drawn.normals).prefetch()
+    if options.shading == "gradient" and shown_normals is not None:
+        shown_normals.prefetch()
     image = render(segments, view, options.method, progress, options.supersample, options.clip, options.fit,
                    tree, **options.method_options)
-    segments = getattr(segments, "segments", segments)
+    segments = drawn
     seconds = {"render": image.seconds}
     if not image.coverage.any():
         warnings.warn(_why_empty(segments, image.view, options), stacklevel=2)
