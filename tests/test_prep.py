@@ -143,3 +143,26 @@ def test_a_read_only_float_volume_is_resampled():
     values.flags.writeable = False
     mask, info = prep.binarize(Volume(values, (1.0, 0.5, 2.0)), 50)
     assert mask.any() and info["voxel"] == 0.5
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.int8, np.uint16, np.int16, np.int32, np.uint32, np.int64])
+def test_windows_select_integers_as_exact_comparison_does(dtype):
+    """Integer values are compared with whole bounds of their own type: the answer of comparing the numbers
+    themselves, for fractional bounds, bounds at the type's ends and beyond them."""
+    from voxrender.object.prep import Interval
+
+    info = np.iinfo(dtype)
+    values = np.concatenate([np.random.default_rng(1).integers(info.min, info.max, 500, dtype, endpoint=True),
+                             np.array([info.min, info.max, 0], dtype)])
+    bounds = [None, -1e30, 1e30, info.min - 0.5, info.min, info.max, info.max + 0.5, -0.5, 0, 0.5, 2.3, -2.3]
+    exact = values.astype(object)
+    for lo in bounds:
+        for hi in bounds:
+            if (lo is None and hi is None) or (lo is not None and hi is not None and lo > hi):
+                continue
+            expected = np.ones(len(values), bool)
+            if lo is not None:
+                expected &= (exact >= lo).astype(bool)
+            if hi is not None:
+                expected &= (exact <= hi).astype(bool)
+            assert np.array_equal(Interval(lo, hi).select(values), expected), (lo, hi)

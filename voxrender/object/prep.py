@@ -43,13 +43,28 @@ class Interval:
     def select(self, values, out=None):
         """``lo <= values <= hi`` as a bool array (into ``out`` when given)."""
         inside = np.ones(np.shape(values), bool) if out is None else out
-        if self.lo is not None:
-            np.greater_equal(values, self.lo, out=inside)
+        lo, hi = self._bounds_for(np.asarray(values).dtype)
+        if lo is not None:
+            np.greater_equal(values, lo, out=inside)
         else:
             inside[...] = True
-        if self.hi is not None:
-            inside &= np.less_equal(values, self.hi)
+        if hi is not None:
+            inside &= np.less_equal(values, hi)
         return inside
+
+    def _bounds_for(self, dtype):
+        """The bounds, for values of ``dtype``: integers are compared with whole bounds of their own type (the
+        same answer, without a float copy of every value), a bound beyond the type's range dropped or made one
+        that no value passes.
+        """
+        if dtype.kind not in "iu":
+            return self.lo, self.hi
+        info = np.iinfo(dtype)
+        lo = None if self.lo is None or self.lo <= info.min else math.ceil(self.lo)
+        hi = None if self.hi is None or self.hi >= info.max else math.floor(self.hi)
+        if (lo is not None and lo > info.max) or (hi is not None and hi < info.min):
+            return dtype.type(info.max), dtype.type(info.min)            # lo above hi: none
+        return (None if lo is None else dtype.type(lo)), (None if hi is None else dtype.type(hi))
 
     def __str__(self):
         return f"{'' if self.lo is None else f'{self.lo:g}'}:{'' if self.hi is None else f'{self.hi:g}'}"

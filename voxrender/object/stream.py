@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import io
+from .._shared.memory import memory_reused
 from ..errors import InputError
 from . import prep, segments, slabs, vxs
 from .normals import stencil_radius, surface_normals
@@ -381,7 +382,7 @@ def encode_part(plan, first, last, folder):
     names = ("starts", "ends", "labels", "normal_index", "normal_packed")
     files = {name: Path(folder) / f"{first:08d}.{name}" for name in names}
     rows, normal_count = [], 0
-    with _Appender(files) as out:
+    with memory_reused(), _Appender(files) as out:
         for a in range(first, last, plan.slab):
             b = min(a + plan.slab, last)
             layers, grey, grey_first, mask_first = _slab(plan, stack, a, b)
