@@ -24,7 +24,7 @@ It measures, on ``vhf_head`` at 300 HU (512 x 512 pictures at scale 1):
   checkerboard with 32 white, 32 black and 9 grey octants); and the sorted linear octree
   against the z-buffer over a range of voxel counts (the linear-octree paper's Table 4);
 * the big stack (``benchmarks/big_stack.py``): a 2048^3 uint16 TIFF stack written once into a cache, encoded
-  (plain, ``--bin 2``, ``--jobs 2``) and rendered by ftb at 1024^2 from disk, beside a cold ``cat`` of the same
+  (plain, ``--bin 2``, ``--jobs 1``) and rendered by ftb at 1024^2 from disk, beside a cold ``cat`` of the same
   files, with peak RSS (run as root, so that the page cache can be dropped before each); about 20 minutes of
   the run, left out by ``--no-big-stack``.
 

@@ -274,3 +274,24 @@ def test_the_survey_before_the_first_slab_holds_no_more_than_a_slab(tmp_path, dt
     finally:
         tracemalloc.stop()
     assert peak < values.nbytes / 10, (peak, values.nbytes)
+
+
+def test_a_streamed_stack_takes_a_worker_for_each_core_that_memory_holds(tmp_path, monkeypatch):
+    """By default a streamed encode shares its slabs out over the machine's cores, as many as max_memory holds;
+    an input read whole is encoded in this process; --jobs decides when given."""
+    from voxrender.object import stream
+
+    np.save(tmp_path / "v.npy", porous())
+    monkeypatch.setattr(stream.os, "cpu_count", lambda: 4)
+    monkeypatch.setattr(stream, "SLAB_VOXELS", 10)            # a worker's share: WORKER_SLABS * 2 * 10 bytes
+    taken = []
+    monkeypatch.setattr(stream, "_run", lambda plan, parts, folder, jobs, *rest: taken.append(jobs) or
+                        [stream.encode_part(plan, *part, str(folder)) for part in parts])
+    share = stream.WORKER_SLABS * 2 * 10
+    for max_memory, jobs, expected in [(10 * share, None, 4), (3 * share, None, 3), (3 * share, 2, 2)]:
+        stream.encode_file(tmp_path / "v.npy", tmp_path / "o.vxs", ReadOptions(), PrepOptions(threshold=1000),
+                           jobs=jobs, max_memory=max_memory)
+        assert taken.pop() == expected
+    stream.encode_file(tmp_path / "v.npy", tmp_path / "o.vxs", ReadOptions(), PrepOptions(threshold=1000),
+                       max_memory=1 << 30)
+    assert taken == []                                          # read whole: not streamed

@@ -22,8 +22,9 @@ from ._options import check_vxs_options, input_flags, max_memory_flag, prep_flag
 @click.option("--octree", "as_octree", is_flag=True,
               help="Also keep the region octree, linear octree and face adjacency (.vxo), so that octree methods "
                    "rendering from it pay only their traversal.")
-@click.option("--jobs", type=click.IntRange(1, 1024), default=1, show_default=True,
-              help="Worker processes encoding slabs of the stack at once.")
+@click.option("--jobs", type=click.IntRange(1, 1024),
+              help="Worker processes encoding slabs of a streamed stack at once (default: the machine's cores, as "
+                   "many as --max-memory holds).")
 @click.option("--scheduler", metavar="ADDRESS|local",
               help="Encode the slabs on a Dask cluster ('local' starts one here); its workers read INPUT's path.")
 @click.option("--levels", is_flag=True,

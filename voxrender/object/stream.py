@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import math
+import os
 import shutil
 import tempfile
 import time
@@ -45,6 +46,8 @@ from .pipeline import (
 SLAB_VOXELS = 1 << 26          # input voxels read at a time (128 MB of 16-bit slices)
 NORMAL_VOXELS = 1 << 24        # grid voxels whose band's normals are found at a time (their stencils are large)
 SAMPLE_STEP = 7                # every 7th voxel tells whether the values are a binary mask (as encode_volume does)
+WORKER_SLABS = 8               # the memory a worker holds, in slabs of input: 4 measured (a slab's grey values,
+                               # layers, band, gradients), and room
 
 
 class ByteCounts(list):
@@ -532,7 +535,7 @@ def _voxel_count(starts, ends):
                for s, e in zip(_chunks(starts), _chunks(ends), strict=True))
 
 
-def encode_file(path, output, read=None, prepare=None, *, octree=False, levels=False, jobs=1, scheduler=None,
+def encode_file(path, output, read=None, prepare=None, *, octree=False, levels=False, jobs=None, scheduler=None,
                 max_memory=None, progress=None):
     """Encode the input at ``path`` into ``output`` (``.vxs``; ``.vxo`` with the octrees, ``octree=True``): a slab
     at a time (:func:`encode_stack`) when reading it whole would take more than ``max_memory`` bytes (default: half
@@ -540,6 +543,9 @@ def encode_file(path, output, read=None, prepare=None, *, octree=False, levels=F
     file is the same.  With ``levels``, the file also keeps the object at 2, 4 and 8 times coarser voxels
     (:mod:`voxrender.object.levels`), made from its runs.  An input that is a ``.vxs`` already gets what is asked
     added.
+
+    ``jobs`` worker processes encode a streamed stack's slabs (default: one for each of the machine's cores, as
+    many as ``max_memory`` holds); an input read whole is encoded in this process.
 
     Returns
     -------
@@ -554,7 +560,9 @@ def encode_file(path, output, read=None, prepare=None, *, octree=False, levels=F
     max_memory = max_memory or machine_memory() // 2
     started = time.perf_counter()
     output, how = Path(output), None
-    streamed = not is_segments_file(path) and _streams(path, read, prepare, max_memory, jobs > 1 or scheduler)
+    streamed = not is_segments_file(path) and _streams(path, read, prepare, max_memory, (jobs or 1) > 1 or scheduler)
+    if jobs is None:
+        jobs = default_jobs(max_memory) if streamed else 1
     # the octrees and levels are built from the streamed .vxs, which is kept beside the output only until then
     added = octree or levels
     objects = output.with_name(f".{output.name}.streamed.vxs") if streamed and added else output
@@ -573,6 +581,16 @@ def encode_file(path, output, read=None, prepare=None, *, octree=False, levels=F
             objects.unlink(missing_ok=True)
     loaded.seconds = {"encode": time.perf_counter() - started}
     return loaded, how
+
+
+def default_jobs(max_memory, slab_voxels=None):
+    """The worker processes a streamed encode takes by default: one for each core, as many as ``max_memory``
+    bytes hold (each holds about ``WORKER_SLABS`` slabs of 16-bit input).
+
+    >>> default_jobs(1 << 20)
+    1
+    """
+    return max(1, min(os.cpu_count() or 1, max_memory // (WORKER_SLABS * 2 * (slab_voxels or SLAB_VOXELS))))
 
 
 def _streams(path, read, prepare, max_memory, shared):
