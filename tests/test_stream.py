@@ -250,7 +250,7 @@ def test_half_floats_and_booleans_stream_as_they_are_read(tmp_path):
 
 
 @pytest.mark.parametrize(("dtype", "threshold"), [
-    (np.int16, 1000.0),                         # every 7th slice, for the binary check
+    (np.int16, 1000.0),                         # every 7th slice of two values, for the binary check
     (np.float32, None),                         # Otsu's threshold of floats: two passes over every slice
 ])
 def test_the_survey_before_the_first_slab_holds_no_more_than_a_slab(tmp_path, dtype, threshold):
@@ -262,6 +262,8 @@ def test_the_survey_before_the_first_slab_holds_no_more_than_a_slab(tmp_path, dt
     from voxrender.object.stream import _survey
 
     values = (np.random.default_rng(1).normal(1000, 300, (560, 32, 32))).astype(dtype)
+    if threshold is not None:                   # two values: the binary check reads every 7th slice
+        values = np.where(values > 1000, 2000, 0).astype(dtype)
     np.save(tmp_path / "v.npy", values)
     stack = open_stack(tmp_path / "v.npy")
     region = tuple(slice(0, n) for n in stack.shape)
@@ -295,3 +297,44 @@ def test_a_streamed_stack_takes_a_worker_for_each_core_that_memory_holds(tmp_pat
     stream.encode_file(tmp_path / "v.npy", tmp_path / "o.vxs", ReadOptions(), PrepOptions(threshold=1000),
                        max_memory=1 << 30)
     assert taken == []                                          # read whole: not streamed
+
+
+def test_the_survey_of_integers_stops_at_a_third_value(tmp_path):
+    """With a threshold given, integers are surveyed only for whether they hold two values: once a third is met
+    the rest of the stack is not read; a two-valued stack is read to its end (every 7th slice)."""
+    from voxrender.io import open_stack
+    from voxrender.object.stream import _survey
+
+    values = np.zeros((560, 32, 32), np.int16)
+    values[:, :16] = 2000
+    values[399, 7, 14] = 1000                          # a third value, where the survey samples (every 7th)
+    for name, data, last in [("grey", values, 399), ("two", np.where(values == 1000, 0, values), 553)]:
+        np.save(tmp_path / f"{name}.npy", data)
+        stack = open_stack(tmp_path / f"{name}.npy")
+        read, numbers = [], stack.read_numbers
+        stack.read_numbers = lambda wanted, read=read, numbers=numbers: read.extend(wanted) or numbers(wanted)
+        found = _survey(stack, tuple(slice(0, n) for n in stack.shape), 1, PrepOptions(threshold=1000),
+                        slab_voxels=4 * 32 * 32)
+        assert found["binary"] == (name == "two")
+        assert last <= max(read) < last + 4 * 7 and read == sorted(read), (name, max(read))
+
+
+@pytest.mark.parametrize("kernel_copy", ["refused", "partial"])
+def test_the_parts_are_joined_the_same_where_the_kernel_cannot_copy_them(tmp_path, monkeypatch, kernel_copy):
+    """The parts are copied into the .vxs within the kernel (copy_file_range); where it refuses (another file
+    system, not Linux) or stops short, the rest goes through a buffer, and the file is the same."""
+    import os
+
+    np.save(tmp_path / "v.npy", porous())
+    prepare = PrepOptions(threshold=1000)
+    encode_stack(tmp_path / "v.npy", tmp_path / "kernel.vxs", ReadOptions(), prepare, slab_voxels=3 * 11 * 15)
+    copy = os.copy_file_range
+
+    def limited(source, out, count, *offsets):
+        if kernel_copy == "refused":
+            raise OSError(18, "Invalid cross-device link")
+        return copy(source, out, min(count, 7), *offsets) if offsets[0] == 0 else 0
+
+    monkeypatch.setattr(os, "copy_file_range", limited)
+    encode_stack(tmp_path / "v.npy", tmp_path / "buffered.vxs", ReadOptions(), prepare, slab_voxels=3 * 11 * 15)
+    assert (tmp_path / "buffered.vxs").read_bytes() == (tmp_path / "kernel.vxs").read_bytes()

@@ -244,8 +244,10 @@ def _survey(stack, region, bin, prepare, slab_voxels=SLAB_VOXELS):
     """What must be known of the whole stack before its first slab is encoded, as :func:`encode_volume` learns it
     from the whole array: whether it holds only two values (then the normals come from the mask), the lowest value
     (what NaN and inf voxels take for the normals) and Otsu's threshold.  With a threshold given, integers need
-    only every 7th slice; Otsu's threshold needs a pass over every slice (16-bit integers are counted value by
-    value, which is all it needs), and float values a second one for its histogram.
+    only every 7th slice, and only until a third value is met (a scan's first slab has many: the rest of a cold
+    read of a seventh of the stack, 7 s of the 2048³ one's, is saved); Otsu's threshold needs a pass over every
+    slice (16-bit integers are counted value by value, which is all it needs), and float values a second one for
+    its histogram.
     """
     binned_slices = (region[0].stop - region[0].start) // bin
     otsu = prepare.selecting is prep.otsu_threshold and not prepare.tissues
@@ -273,7 +275,10 @@ def _survey(stack, region, bin, prepare, slab_voxels=SLAB_VOXELS):
                 lowest = least if lowest is None else min(lowest, least)
     else:                                   # every 7th (binned) slice, a slab's worth of them at a time
         for numbers in _runs(stack, binned_slices, bin, region, slab_voxels, SAMPLE_STEP):
-            sample += [_thinned(plane) for plane in _binned(stack, region, bin, numbers)]
+            sample += [np.unique(_thinned(plane)) for plane in _binned(stack, region, bin, numbers)]
+            sample = [np.unique(np.concatenate(sample))]          # the distinct values so far
+            if len(sample[0]) > 2:
+                break                       # not binary, whatever the rest holds: no need to read it
     threshold = None
     if otsu:
         if counted:                            # the values held, and how often: Otsu's histogram of them

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -100,12 +101,33 @@ def write_sections(path, shape, spacing, meta, arrays):
             f.seek(data_start + layout[name]["offset"])
             if isinstance(array, Spilled):
                 for part in array.files:
-                    with open(part, "rb") as source:
-                        shutil.copyfileobj(source, f, 16 << 20)
+                    _copy_file(part, f)
             else:          # a mapped file's a block at a time from the file: its pages do not stay in memory
                 for block in blocks(np.ascontiguousarray(array).reshape(-1)):
                     f.write(block.data)                  # no copy of the bytes
         f.truncate(data_start + position)
+
+
+def _copy_file(path, out):
+    """Append the file at ``path`` to the open file ``out`` at its position: within the kernel where it can
+    (``copy_file_range``: no pass through this process's memory, which halves the work of joining a streamed
+    encode's parts, 6 GB of them for the 2048³ stack), else through a buffer.
+    """
+    out.flush()
+    position, done = out.tell(), 0
+    with open(path, "rb") as source:
+        size = os.fstat(source.fileno()).st_size
+        try:
+            while done < size:
+                copied = os.copy_file_range(source.fileno(), out.fileno(), size - done, done, position + done)
+                if not copied:
+                    break
+                done += copied
+        except (AttributeError, OSError):      # not Linux, or file systems it cannot copy between
+            pass
+        out.seek(position + done)
+        source.seek(done)
+        shutil.copyfileobj(source, out, 16 << 20)      # what is left, if anything
 
 
 def read_sections(path):
