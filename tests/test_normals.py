@@ -127,6 +127,28 @@ def test_the_separable_pass_on_a_grid_is_the_stencil(binary):
     assert np.degrees(np.arccos(np.clip(cosine, -1, 1))).max() < 0.05      # the same, up to quantisation
 
 
+@pytest.mark.parametrize("kind", ["sobel of 16-bit values", "gaussian of floats"])
+def test_the_separable_sums_of_voxels_inside_the_grid_are_those_of_clipped_rows_to_the_last_bit(kind):
+    """Voxels whose stencil stays inside the grid read it through shifted views from one index; a voxel on the
+    grid's edge makes the chunk clip its rows instead: each voxel's sums are the same either way."""
+    rng = np.random.default_rng(3)
+    if kind.startswith("sobel"):
+        grid, (smooth, derive), dtype = rng.integers(0, 65535, (9, 12, 14)).astype(np.uint16), normals.SOBEL_1D, \
+            np.int32
+    else:
+        grid, (smooth, derive), dtype = rng.random((9, 12, 14)) * 1000, normals.GAUSSIAN_1D, np.float64
+    radius = len(smooth) // 2
+    z, y, x = (a.ravel() for a in np.mgrid[radius:9 - radius, radius:12 - radius, radius:14 - radius])
+    inside = normals._separable_sums(grid, z, y, x, smooth, derive, dtype)
+    edge = [np.append(a, [0]) for a in (z, y)] + [np.append(x, [radius])]      # one voxel on the first slice
+    clipped = normals._separable_sums(grid, *edge, smooth, derive, dtype)
+    assert np.array_equal(inside, clipped[:, :-1])
+    if dtype is np.int32:                          # and the plain stencil of samples, exact in whole numbers
+        expected = normals._gradient_of_samples(normals._edge_sampler(grid), np.stack([x, y, z], axis=1),
+                                                *normals.SOBEL)
+        assert np.array_equal(inside.T, expected)
+
+
 @pytest.mark.parametrize("spread", [1, 40])
 def test_each_point_of_overlapping_stencils_is_sampled_once_with_its_own_value(spread):
     # a band's stencils share most of their points: each is sampled once (spread 1), unless the centres lie too

@@ -480,19 +480,29 @@ def _in_chunks(work, count, chunk=THREAD_VOXELS):
 
 def _separable_sums(grid, z, y, x, smooth, derive, kind):
     """:func:`_gradient_on_grid`'s sums at voxels ``z, y, x`` whose rows hold the kernel's reach in x: ``(3, N)``
-    of ``kind``, each voxel's taken in one fixed order.
+    of ``kind``, each voxel's taken in one fixed order.  Voxels whose stencil stays inside the grid take every
+    value from one index, that of their stencil's first corner, in views of the grid shifted by each offset: no
+    index is computed for each of the stencil's values.
     """
     radius = len(smooth) // 2
     nz, ny, nx = grid.shape
     flat = grid.ravel()
     found = np.zeros((3, len(x)), kind)
+    inside = bool(len(x)) and bool(radius <= z.min() and z.max() < nz - radius
+                                   and radius <= y.min() and y.max() < ny - radius)
+    if inside:
+        corner = ((z - radius) * ny + y - radius) * nx + x - radius
     for dz in range(2 * radius + 1):
-        plane = np.clip(z + dz - radius, 0, nz - 1) * ny
+        if not inside:
+            plane = np.clip(z + dz - radius, 0, nz - 1) * ny
         for dy in range(2 * radius + 1):
-            row = (plane + np.clip(y + dy - radius, 0, ny - 1)) * nx + x - radius
+            if inside:
+                row, values_of = corner, flat[(dz * ny + dy) * nx:]
+            else:
+                row, values_of = (plane + np.clip(y + dy - radius, 0, ny - 1)) * nx + x - radius, flat
             along, across = np.zeros(len(x), kind), np.zeros(len(x), kind)    # the x-derivative, x-smoothed sum
             for dx in range(2 * radius + 1):
-                values = flat.take(row + dx).astype(kind)
+                values = values_of[dx:].take(row).astype(kind)
                 _add(along, kind(derive[dx]), values)
                 _add(across, kind(smooth[dx]), values)
             _add(found[0], kind(smooth[dy] * smooth[dz]), along)
