@@ -48,18 +48,25 @@ def memory_reused():
     With large arrays taken from the heap and the heap not trimmed, each slab reuses the pages the last one
     touched.  Elsewhere than glibc, nothing changes.
     """
-    libc = _glibc()
-    if libc is None:
-        yield
-        return
-    libc.mallopt(_M_MMAP_MAX, 0)
-    libc.mallopt(_M_TRIM_THRESHOLD, 1 << 30)
+    libc = keep_freed_memory()
     try:
         yield
     finally:
-        libc.mallopt(_M_MMAP_MAX, _DEFAULT_MMAP_MAX)
-        libc.mallopt(_M_TRIM_THRESHOLD, _DEFAULT_TRIM_THRESHOLD)
-        libc.malloc_trim(0)
+        if libc is not None:
+            libc.mallopt(_M_MMAP_MAX, _DEFAULT_MMAP_MAX)
+            libc.mallopt(_M_TRIM_THRESHOLD, _DEFAULT_TRIM_THRESHOLD)
+            libc.malloc_trim(0)
+
+
+def keep_freed_memory():
+    """From now on, memory this process frees stays with it for the next arrays (:func:`memory_reused`): for a
+    worker process, which ends with its work.  Returns the C library's functions, ``None`` where it is not glibc.
+    """
+    libc = _glibc()
+    if libc is not None:
+        libc.mallopt(_M_MMAP_MAX, 0)
+        libc.mallopt(_M_TRIM_THRESHOLD, 1 << 30)
+    return libc
 
 
 def _glibc():

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import io
-from .._shared.memory import memory_reused
+from .._shared.memory import keep_freed_memory, memory_reused
 from ..errors import InputError
 from . import prep, segments, slabs, vxs
 from .normals import stencil_radius, surface_normals
@@ -366,9 +366,10 @@ def _run(plan, parts, folder, jobs, scheduler, progress, stack):
     next(ticks, None)                                         # the bar and its clock start
     if jobs <= 1 and not scheduler:
         results = []
-        for part in parts:
-            results.append(encode_part(plan, *part, str(folder)))
-            next(ticks, None)                                 # a part done: the bar moves by its bytes
+        with memory_reused():
+            for part in parts:
+                results.append(encode_part(plan, *part, str(folder)))
+                next(ticks, None)                             # a part done: the bar moves by its bytes
         return results
     pool = executor(jobs, scheduler)
     try:
@@ -390,7 +391,8 @@ def encode_part(plan, first, last, folder):
     names = ("starts", "ends", "labels", "normal_index", "normal_packed")
     files = {name: Path(folder) / f"{first:08d}.{name}" for name in names}
     rows, normal_count = [], 0
-    with memory_reused(), _Appender(files) as out:
+    keep_freed_memory()                 # a worker's slabs reuse the pages of the last (ended by _run in this process)
+    with _Appender(files) as out:
         for a in range(first, last, plan.slab):
             b = min(a + plan.slab, last)
             layers, grey, grey_first, mask_first = _slab(plan, stack, a, b)
