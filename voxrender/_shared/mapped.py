@@ -65,6 +65,16 @@ def read_mapped(array, first, last):
                        offset=_file_offset(array, mapping) + first * array.itemsize)
 
 
+def file_span(array):
+    """Where the bytes of a contiguous, memory-mapped ``array`` lie: ``(file name, offset)``; ``None`` for any
+    other array.
+    """
+    mapping = _mapping(array)
+    if mapping is None or mapping.filename is None or not array.flags.c_contiguous:
+        return None
+    return mapping.filename, _file_offset(array, mapping)
+
+
 def _file_offset(array, mapping):
     """Where ``array``'s first value lies in the file behind ``mapping`` (the memory map it is a view of)."""
     return mapping.offset + array.__array_interface__["data"][0] - mapping.__array_interface__["data"][0]

@@ -11,14 +11,13 @@ from __future__ import annotations
 import json
 import math
 import os
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .._shared.files import atomic_output
-from .._shared.mapped import blocks
+from .._shared.mapped import blocks, file_span
 from .._shared.threads import on_threads
 from ..errors import InputError
 from .normals import SurfaceNormals
@@ -102,32 +101,40 @@ def write_sections(path, shape, spacing, meta, arrays):
             if isinstance(array, Spilled):
                 for part in array.files:
                     _copy_file(part, f)
-            else:          # a mapped file's a block at a time from the file: its pages do not stay in memory
+            elif (span := file_span(array)) is not None and array.nbytes:     # a mapped file's, copied from it
+                _copy_file(span[0], f, span[1], array.nbytes)
+            else:          # in memory, a block at a time (a mapped one from its file: its pages do not stay)
                 for block in blocks(np.ascontiguousarray(array).reshape(-1)):
                     f.write(block.data)                  # no copy of the bytes
         f.truncate(data_start + position)
 
 
-def _copy_file(path, out):
-    """Append the file at ``path`` to the open file ``out`` at its position: within the kernel where it can
-    (``copy_file_range``: no pass through this process's memory, which halves the work of joining a streamed
-    encode's parts, 6 GB of them for the 2048³ stack), else through a buffer.
+def _copy_file(path, out, offset=0, size=None):
+    """Append the bytes ``offset .. offset + size`` of the file at ``path`` (default: all) to the open file ``out``
+    at its position: within the kernel where it can (``copy_file_range``: no pass through this process's memory,
+    which halves the work of joining a streamed encode's parts, 6 GB of them for the 2048³ stack, or of writing a
+    mapped object into a new file), else through a buffer.
     """
     out.flush()
     position, done = out.tell(), 0
     with open(path, "rb") as source:
-        size = os.fstat(source.fileno()).st_size
+        size = os.fstat(source.fileno()).st_size - offset if size is None else size
         try:
             while done < size:
-                copied = os.copy_file_range(source.fileno(), out.fileno(), size - done, done, position + done)
+                copied = os.copy_file_range(source.fileno(), out.fileno(), size - done, offset + done, position + done)
                 if not copied:
                     break
                 done += copied
         except (AttributeError, OSError):      # not Linux, or file systems it cannot copy between
             pass
         out.seek(position + done)
-        source.seek(done)
-        shutil.copyfileobj(source, out, 16 << 20)      # what is left, if anything
+        source.seek(offset + done)
+        while done < size:                      # what is left, if anything
+            block = source.read(min(size - done, 16 << 20))
+            if not block:
+                raise OSError(f"{path} ended before its {size} bytes from {offset}")
+            out.write(block)
+            done += len(block)
 
 
 def read_sections(path):
