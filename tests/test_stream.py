@@ -3,6 +3,7 @@ for byte, in every orientation and with every step of the selection; in worker p
 """
 
 import itertools
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -24,15 +25,15 @@ def porous(shape=SHAPE, seed=0):
     return (1000 + 800 * np.tanh(field * 2) + noise).astype(np.int16)
 
 
-def same_file(tmp_path, name, read, prepare, slabs=(1, 3), jobs=1, scheduler=None):
+def same_file(tmp_path, name, read, prepare, slabs=(1, 3), jobs=1, scheduler=None, levels=False):
     """Encode in memory and streamed (slabs of so many slices); assert the two files are the same bytes."""
     expected = tmp_path / "memory.vxs"
-    load_segments(tmp_path / name, read, prepare).save(expected)
+    load_segments(tmp_path / name, read, prepare).save(expected, levels=levels)
     plane = SHAPE[1] * SHAPE[2]
     for slab in slabs:
         streamed = tmp_path / f"streamed-{slab}.vxs"
         encode_stack(tmp_path / name, streamed, read, prepare, slab_voxels=slab * plane,
-                     jobs=jobs, scheduler=scheduler)
+                     jobs=jobs, scheduler=scheduler, levels=levels)
         assert streamed.read_bytes() == expected.read_bytes(), (name, read, prepare, slab)
     return vxs.load(expected)
 
@@ -73,6 +74,25 @@ def test_the_cases_say_how_the_stack_is_read(tmp_path):
 def test_every_step_of_the_selection_gives_the_same_file(tmp_path, read, prepare):
     np.save(tmp_path / "v.npy", porous())
     same_file(tmp_path, "v.npy", read, prepare)
+
+
+@pytest.mark.parametrize("read, prepare", [
+    (ReadOptions(), PrepOptions(threshold=1000)),
+    (ReadOptions(spacing=(1, 1, 1.4)), PrepOptions(threshold=None, tissues=(
+        ("soft", prep.Interval(600, 1200), (1, 0, 0)), ("bone", prep.Interval(1200), (0, 1, 0))))),
+    (ReadOptions(spacing=(1.0, 1.0, 2.0)), PrepOptions(threshold=1000, bin=2)),
+    (ReadOptions(orientation="LPI"), PrepOptions(threshold=1000, crop=(slice(1, 12), slice(1, 10), slice(0, 14)))),
+])
+@pytest.mark.parametrize("slabs", [(1, 3, 6), (20,)])
+def test_levels_made_as_the_slabs_pass_are_those_made_from_the_whole_object(tmp_path, read, prepare, slabs):
+    """The 2 x level made from each slab as it passes (slabs of whole coarse slices), and the coarser ones from
+    it, give the file that the object in memory saved with its levels gives: odd and even grids, labels,
+    binning, a crop; the binary mask's normals too."""
+    np.save(tmp_path / "v.npy", porous())
+    same_file(tmp_path, "v.npy", read, prepare, slabs=slabs, levels=True)
+    if not prepare.tissues:
+        np.save(tmp_path / "b.npy", porous() > 1000)
+        same_file(tmp_path, "b.npy", read, replace(prepare, threshold=1), slabs=slabs[:1], levels=True)
 
 
 def test_float_values_with_nan_and_a_binary_mask(tmp_path):
@@ -259,7 +279,7 @@ def test_the_survey_before_the_first_slab_holds_no_more_than_a_slab(tmp_path, dt
     import tracemalloc
 
     from voxrender.io import open_stack
-    from voxrender.object.stream import _survey
+    from voxrender.object.survey import survey
 
     values = (np.random.default_rng(1).normal(1000, 300, (560, 32, 32))).astype(dtype)
     if threshold is not None:                   # two values: the binary check reads every 7th slice
@@ -268,10 +288,10 @@ def test_the_survey_before_the_first_slab_holds_no_more_than_a_slab(tmp_path, dt
     stack = open_stack(tmp_path / "v.npy")
     region = tuple(slice(0, n) for n in stack.shape)
     prepare = PrepOptions() if threshold is None else PrepOptions(threshold=threshold)
-    _survey(stack, region, 1, prepare, slab_voxels=4 * 32 * 32)       # the modules it imports, imported
+    survey(stack, region, 1, prepare, slab_voxels=4 * 32 * 32)       # the modules it imports, imported
     tracemalloc.start()
     try:
-        _survey(stack, region, 1, prepare, slab_voxels=4 * 32 * 32)
+        survey(stack, region, 1, prepare, slab_voxels=4 * 32 * 32)
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
@@ -303,7 +323,7 @@ def test_the_survey_of_integers_stops_at_a_third_value(tmp_path):
     """With a threshold given, integers are surveyed only for whether they hold two values: once a third is met
     the rest of the stack is not read; a two-valued stack is read to its end (every 7th slice)."""
     from voxrender.io import open_stack
-    from voxrender.object.stream import _survey
+    from voxrender.object.survey import survey
 
     values = np.zeros((560, 32, 32), np.int16)
     values[:, :16] = 2000
@@ -313,7 +333,7 @@ def test_the_survey_of_integers_stops_at_a_third_value(tmp_path):
         stack = open_stack(tmp_path / f"{name}.npy")
         read, numbers = [], stack.read_numbers
         stack.read_numbers = lambda wanted, read=read, numbers=numbers: read.extend(wanted) or numbers(wanted)
-        found = _survey(stack, tuple(slice(0, n) for n in stack.shape), 1, PrepOptions(threshold=1000),
+        found = survey(stack, tuple(slice(0, n) for n in stack.shape), 1, PrepOptions(threshold=1000),
                         slab_voxels=4 * 32 * 32)
         assert found["binary"] == (name == "two")
         assert last <= max(read) < last + 4 * 7 and read == sorted(read), (name, max(read))
@@ -338,3 +358,22 @@ def test_the_parts_are_joined_the_same_where_the_kernel_cannot_copy_them(tmp_pat
     monkeypatch.setattr(os, "copy_file_range", limited)
     encode_stack(tmp_path / "v.npy", tmp_path / "buffered.vxs", ReadOptions(), prepare, slab_voxels=3 * 11 * 15)
     assert (tmp_path / "buffered.vxs").read_bytes() == (tmp_path / "kernel.vxs").read_bytes()
+
+
+def test_encode_with_levels_streams_them_once_on_workers_too(tmp_path, monkeypatch):
+    """encode_file of a streamed stack with levels writes the file once, its levels made as the slabs pass (no
+    hidden first file to read again), on worker processes as in this one: the in-memory encode's file."""
+    from voxrender.object import stream
+
+    np.save(tmp_path / "v.npy", porous())
+    prepare = PrepOptions(threshold=1000)
+    memory, _ = stream.encode_file(tmp_path / "v.npy", tmp_path / "memory.vxs", ReadOptions(), prepare, levels=True,
+                                   max_memory=1 << 30)
+    asked, real = [], stream.encode_stack
+    monkeypatch.setattr(stream, "encode_stack", lambda *args, **kw: asked.append(kw["levels"]) or real(*args, **kw))
+    for jobs in (1, 2):
+        streamed, how = stream.encode_file(tmp_path / "v.npy", tmp_path / f"streamed-{jobs}.vxs", ReadOptions(),
+                                           prepare, levels=True, jobs=jobs, max_memory=1000)
+        assert how and asked.pop() is True and len(streamed.segments.levels) == 3
+        assert (tmp_path / f"streamed-{jobs}.vxs").read_bytes() == (tmp_path / "memory.vxs").read_bytes()
+    assert len(memory.segments.levels) == 3 and not list(tmp_path.glob(".*"))

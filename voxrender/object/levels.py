@@ -62,13 +62,9 @@ def coarser(segments, factor=2):
     if not (isinstance(factor, (int, np.integer)) and factor >= 2):
         raise ValueError(f"factor {factor!r} must be a whole number of voxels, 2 or more")
     nz, ny, nx = segments.shape
-    shape = tuple(-(-n // factor) for n in (nz, ny, nx))
-    meta = {key: value for key, value in segments.meta.items() if key != "levels"}
-    meta["level_factor"] = int(meta.get("level_factor", 1)) * int(factor)
-    if segments.labels is not None and "label_voxels" not in meta:     # the tables keep the full resolution's
-        own = segments.label_voxels()
-        meta["label_voxels"] = {str(k): v for k, v in own.items()}
-        meta.setdefault("label_ml", {str(k): label_sets.millilitres(v, segments.spacing) for k, v in own.items()})
+    shape = coarse_shape(segments.shape, factor)
+    meta = coarse_meta(segments.meta, factor, segments.label_voxels if segments.labels is not None else None,
+                       segments.spacing)
     offsets = np.asarray(segments.offsets)
     cny = shape[1]
     segments.check()
@@ -107,6 +103,25 @@ def coarser(segments, factor=2):
                                         np.concatenate([packed for _, packed in found]),
                                         f"{source}, summed over {f}x{f}x{f} voxels")
     return result
+
+
+def coarse_shape(shape, factor):
+    """The grid of a level ``factor`` times coarser than ``shape``'s: ``ceil(n / factor)`` along each axis."""
+    return tuple(-(-n // factor) for n in shape)
+
+
+def coarse_meta(meta, factor, label_voxels=None, spacing=None):
+    """A level's meta: the finer one's (``meta``), with ``level_factor``, its voxel's edge in voxels of the full
+    resolution, and of a labelled object (``label_voxels()`` giving the full resolution's ``{label: voxels}``) the
+    full resolution's voxels and mL of each label, which its tables show.
+    """
+    meta = {key: value for key, value in meta.items() if key != "levels"}
+    meta["level_factor"] = int(meta.get("level_factor", 1)) * int(factor)
+    if label_voxels is not None and "label_voxels" not in meta:     # the tables keep the full resolution's
+        own = label_voxels()
+        meta["label_voxels"] = {str(k): v for k, v in own.items()}
+        meta.setdefault("label_ml", {str(k): label_sets.millilitres(v, spacing) for k, v in own.items()})
+    return meta
 
 
 def build_levels(segments, factors=FACTORS):
@@ -219,11 +234,23 @@ def _binned_normals(normals, first, last, factor, coarse):
     object's side (:meth:`voxrender.object.normals.SurfaceNormals.at` weighs the corners that have one), and the
     file is smaller.  Returns their sorted voxel numbers and packed normals.
     """
-    nz, ny, nx = normals.shape
-    cnz, cny, cnx = coarse.shape
-    plane = ny * nx
+    plane = normals.shape[1] * normals.shape[2]
     lo, hi = (int(v) for v in search_mapped(normals.index, [first * plane, last * plane]))
     fine = read_mapped(normals.index, lo, hi).astype(np.int64)
+    packed = read_mapped(np.asarray(normals.packed).reshape(-1), 2 * lo, 2 * hi).reshape(-1, 2)
+    below, above = max(first // factor - 1, 0), min((last - 1) // factor + 2, coarse.shape[0])
+    return summed_normals(fine, packed, normals.shape, first, last, factor, _decoded(coarse, below, above), below)
+
+
+def summed_normals(fine, packed, shape, first, last, factor, solid, below):
+    """:func:`_binned_normals` of the fine normals ``fine`` (sorted voxel numbers of a grid of ``shape``) and
+    their ``packed`` normals, all those of fine slices ``first .. last - 1``, given the coarse object's slices
+    ``below ..`` as a bool mask ``solid``, which holds the slice beside the group's on each side where there is
+    one: their coarse voxel numbers and packed normals.
+    """
+    nz, ny, nx = shape
+    cnz, cny, cnx = coarse_shape(shape, factor)
+    plane = ny * nx
     z, rest = np.divmod(fine, plane)
     y, x = np.divmod(rest, nx)
     # summed on the dense grid of the group's coarse slices (bincount: no sort of the fine voxels)
@@ -232,14 +259,12 @@ def _binned_normals(normals, first, last, factor, coarse):
     local = (z // factor * cny + y // factor) * cnx + x // factor - base
     cells = (top - bottom) * cny * cnx
     present = np.flatnonzero(np.bincount(local, minlength=cells))
-    unit = octahedral_decode(read_mapped(np.asarray(normals.packed).reshape(-1), 2 * lo, 2 * hi).reshape(-1, 2))
+    unit = octahedral_decode(packed)
     total = np.stack([np.bincount(local, weights=unit[:, k], minlength=cells)[present] for k in range(3)], axis=1)
     length = np.sqrt(np.einsum("nk,nk->n", total, total))
-    below, above = max(bottom - 1, 0), min(top + 1, cnz)          # the slices beside, for the band's neighbours
-    solid = _decoded(coarse, below, above)
-    surface = (surface_band(solid) & solid)[bottom - below:top - below].reshape(-1)
+    surface = (surface_band(solid) & solid)[bottom - below:top - below].reshape(-1)    # beside: the neighbours
     kept = (length > 1e-6) & surface[present]
-    index_type = np.int32 if np.prod(coarse.shape, dtype=np.int64) < 2 ** 31 else np.int64
+    index_type = np.int32 if cnz * cny * cnx < 2 ** 31 else np.int64
     return (present[kept] + base).astype(index_type), octahedral_encode(total[kept] / length[kept, None])
 
 

@@ -31,7 +31,8 @@ from .. import io
 from .._shared.memory import keep_freed_memory, memory_reused
 from ..errors import InputError
 from . import prep, segments, slabs, vxs
-from .normals import stencil_radius, surface_normals
+from .levels import FACTORS, build_levels, coarse_meta, coarse_shape, summed_normals
+from .normals import SurfaceNormals, stencil_radius, surface_normals
 from .pipeline import (
     PrepOptions,
     ReadOptions,
@@ -42,10 +43,10 @@ from .pipeline import (
     on_input_grid,
     source_meta,
 )
+from .survey import binned_slices, slab_slices, survey
 
 SLAB_VOXELS = 1 << 26          # input voxels read at a time (128 MB of 16-bit slices)
 NORMAL_VOXELS = 1 << 24        # grid voxels whose band's normals are found at a time (their stencils are large)
-SAMPLE_STEP = 7                # every 7th voxel tells whether the values are a binary mask (as encode_volume does)
 WORKER_SLABS = 8               # the memory a worker holds, in slabs of input: 4 measured (a slab's grey values,
                                # layers, band, gradients), and room
 
@@ -75,10 +76,11 @@ class Plan:
     fill: float | None      # the value NaN and inf voxels take for the normals (the lowest), when there are any
     slab: int               # grid slices per slab
     spool: str | None = None   # a raw file of the stored slices, inflated once (compressed, not in stored order)
+    levels: bool = False       # also the object at 2 x coarser voxels, made as the slabs pass (levels.FACTORS)
 
 
 def encode_stack(path, output, read=None, prepare=None, *, jobs=1, scheduler=None, progress=None,
-                 slab_voxels=SLAB_VOXELS):
+                 slab_voxels=SLAB_VOXELS, levels=False):
     """Encode the stack at ``path`` into the ``.vxs`` file ``output`` a slab at a time, in bounded memory.
 
     Parameters
@@ -100,6 +102,10 @@ def encode_stack(path, output, read=None, prepare=None, *, jobs=1, scheduler=Non
         ``progress(iterable, length, label)``; its items are :class:`ByteCounts`, the bytes read.
     slab_voxels : int
         Input voxels read at a time (smaller: less memory).
+    levels : bool
+        Also keep the object at 2, 4 and 8 times coarser voxels (:mod:`voxrender.object.levels`): the 2 x level
+        made from each slab as it passes, the others from it; the file is the one ``Encoded.save(levels=True)``
+        writes, without reading the object again.
 
     Returns
     -------
@@ -135,6 +141,8 @@ def encode_stack(path, output, read=None, prepare=None, *, jobs=1, scheduler=Non
                 _spool(stack.stack, spool, progress)
                 stack = _open(str(path), read, token, spool)
             plan, meta = _plan(stack, str(path), read, prepare, slab_voxels, token, spool)
+            if levels:                  # slabs of whole coarse slices
+                plan = replace(plan, levels=True, slab=min(plan.grid[0], max(2, plan.slab // 2 * 2)))
             parts = [(a, min(a + plan.slab, plan.grid[0])) for a in range(0, plan.grid[0], plan.slab)]  # a slab each
             results = _run(plan, parts, folder, jobs, scheduler, progress, stack)
             counts = np.concatenate([r["rows"] for r in results])
@@ -143,7 +151,7 @@ def encode_stack(path, output, read=None, prepare=None, *, jobs=1, scheduler=Non
                                  f"{', '.join(w.words() for w in plan.windows)} holds no voxel of {meta['source']}; "
                                  "choose a threshold or window within its values (info tells them)",
                                  parameter="preset" if prepare.tissues else "threshold")
-            written = _write(output, plan, meta, prepare, results, counts)
+            written = _write(output, plan, meta, prepare, results, counts, levels)
         return written | {"how": stack.how + " (inflated once)" * bool(spool)}
     finally:
         shutil.rmtree(folder, ignore_errors=True)
@@ -195,24 +203,24 @@ def _plan(stack, source, read, prepare, slab_voxels, token, spool=None):
     cropped = tuple(r.stop - r.start for r in region)
     prep.check_bin(bin, cropped)
     shape, spacing, voxel, grid, resampled = _grid(cropped, stack.spacing, prepare)
-    survey = _survey(stack, region, bin, prepare, slab_voxels)
+    surveyed = survey(stack, region, bin, prepare, slab_voxels)
     if prepare.tissues:
         windows = tuple(window for _, window, _ in prepare.tissues)
         threshold = ", ".join(str(w) for w in windows)
     else:
         found = prepare.selecting
         if found is prep.otsu_threshold:
-            found = survey["otsu"]
+            found = surveyed["otsu"]
         elif callable(found):
             raise InputError("a threshold found by a function needs the whole volume; give a number or a window "
                              "to stream the stack", parameter="threshold")
         windows = (found if isinstance(found, prep.Interval) else prep.Interval(float(found)),)
         threshold = str(found) if isinstance(found, prep.Interval) else windows[0].lo
-    slab = _slab_slices(stack, cropped, grid, bin, slab_voxels)
+    slab = slab_slices(stack, cropped, grid, bin, slab_voxels)
     step = grid_step(spacing, voxel, prepare.resample)
     plan = Plan(source, read, token, region, bin, windows, grid, voxel, spacing, resampled,
-                on_input_grid(step, shape, grid), "the binary mask" if survey["binary"] else "grey values",
-                survey["fill"], slab, spool)
+                on_input_grid(step, shape, grid), "the binary mask" if surveyed["binary"] else "grey values",
+                surveyed["fill"], slab, spool)
     meta = source_meta(stack, source)
     if bin > 1:
         meta["binned"] = bin
@@ -228,129 +236,6 @@ def _grid(cropped, spacing, prepare):
     spacing = tuple(float(s) * prepare.bin for s in spacing)
     voxel, out_shape = prep.cubic_grid(shape, spacing, prepare.voxel, prepare.resample)
     return shape, spacing, voxel, out_shape or shape, out_shape is not None
-
-
-def _slab_slices(stack, cropped, grid, bin, slab_voxels):
-    """Grid slices per slab: about ``slab_voxels`` input voxels or grid voxels (a finer grid holds more), and four
-    times that for a stack read across its stored slices, which each slab reads whole again.
-    """
-    if stack.how == "across the stored slices":
-        slab_voxels *= 4
-    plane = max(cropped[1] * cropped[2] * bin, grid[1] * grid[2], 1)
-    return max(1, min(grid[0], slab_voxels // plane))
-
-
-def _survey(stack, region, bin, prepare, slab_voxels=SLAB_VOXELS):
-    """What must be known of the whole stack before its first slab is encoded, as :func:`encode_volume` learns it
-    from the whole array: whether it holds only two values (then the normals come from the mask), the lowest value
-    (what NaN and inf voxels take for the normals) and Otsu's threshold.  With a threshold given, integers need
-    only every 7th slice, and only until a third value is met (a scan's first slab has many: the rest of a cold
-    read of a seventh of the stack, 7 s of the 2048³ one's, is saved); Otsu's threshold needs a pass over every
-    slice (16-bit integers are counted value by value, which is all it needs), and float values a second one for
-    its histogram.
-    """
-    binned_slices = (region[0].stop - region[0].start) // bin
-    otsu = prepare.selecting is prep.otsu_threshold and not prepare.tissues
-    # the padding of the volume binarize sees: the whole one, or the cropped one binned
-    whole = (slice(0, stack.shape[0]), slice(None), slice(None))
-    padding = prep.padding_value(_Sampled(stack, *((region, bin) if bin > 1 else (whole, 1)))) if otsu else None
-    counted = otsu and stack.dtype.kind in "iu" and stack.dtype.itemsize <= 2 and bin == 1
-    sample, low, high, lowest, finite = [], None, None, None, True
-    counts = np.zeros(1 << (8 * stack.dtype.itemsize), np.int64) if counted else None
-    offset = -int(np.iinfo(stack.dtype).min) if counted else 0
-    if otsu or stack.dtype.kind == "f":
-        for numbers in _runs(stack, binned_slices, bin, region, slab_voxels):
-            values = _binned(stack, region, bin, numbers)
-            sample += [_thinned(plane) for k, plane in zip(numbers, values, strict=True) if k % SAMPLE_STEP == 0]
-            if counted:
-                for part in slabs.blocks(values, 1 << 23):
-                    counts += np.bincount(part.ravel().astype(np.int32) + offset, minlength=len(counts))
-                continue
-            lo, hi, _ = slabs.kept_range(values, padding)
-            if lo is not None:
-                low, high = (lo, hi) if low is None else (min(low, lo), max(high, hi))
-            least, _, all_finite = slabs.kept_range(values, None)
-            finite &= all_finite
-            if least is not None:
-                lowest = least if lowest is None else min(lowest, least)
-    else:                                   # every 7th (binned) slice, a slab's worth of them at a time
-        for numbers in _runs(stack, binned_slices, bin, region, slab_voxels, SAMPLE_STEP):
-            sample += [np.unique(_thinned(plane)) for plane in _binned(stack, region, bin, numbers)]
-            sample = [np.unique(np.concatenate(sample))]          # the distinct values so far
-            if len(sample[0]) > 2:
-                break                       # not binary, whatever the rest holds: no need to read it
-    threshold = None
-    if otsu:
-        if counted:                            # the values held, and how often: Otsu's histogram of them
-            held = np.flatnonzero(counts) - offset
-            kept = held[held != padding] if padding is not None else held
-            low, high = (float(kept.min()), float(kept.max())) if len(kept) else (None, None)
-        try:
-            prep.check_range(low, high, padding)
-        except InputError as exc:                      # a constant or all-NaN stack: name it
-            raise InputError(f"{stack.meta.get('source', 'the stack')}: {exc.message}", exc.parameter) from None
-        edges = prep.otsu_bins(low, high, np.float32 if bin > 1 else stack.dtype)       # binned values: float32
-        if counted:
-            histogram = np.histogram(kept, bins=edges, weights=counts[kept + offset])[0].astype(np.int64)
-        else:
-            histogram = np.zeros(len(edges) - 1, np.int64)
-            for numbers in _runs(stack, binned_slices, bin, region, slab_voxels):
-                values = _binned(stack, region, bin, numbers)
-                for part in slabs.kept_parts(values, padding):
-                    histogram += np.histogram(part, bins=edges)[0]
-        threshold = prep.otsu_of_histogram(histogram, edges)
-    sample = np.concatenate([np.asarray(s).ravel() for s in sample])
-    fill = None
-    if not finite:
-        fill = lowest if lowest is not None else 0.0
-        sample = np.where(np.isfinite(sample), sample, fill)
-    return {"binary": len(np.unique(sample)) <= 2, "fill": fill, "otsu": threshold}
-
-
-def _runs(stack, count, bin, region, slab_voxels, step=1):
-    """The binned slices ``0 .. count - 1`` (every ``step``-th of them) in runs of as many as a slab holds
-    (:func:`_slab_slices`), for a pass over them.
-    """
-    cropped = tuple(r.stop - r.start for r in region)
-    per = _slab_slices(stack, cropped, cropped, bin, slab_voxels)
-    return [range(first, min(first + per * step, count), step) for first in range(0, count, per * step)]
-
-
-def _thinned(plane):
-    """Every 7th value of every 7th row of a slice, as the binary check samples the volume: a copy, so that the
-    slab it is a view of is not kept (the kept views of a 16 GiB stack held 5 GB).
-    """
-    return plane[::SAMPLE_STEP, ::SAMPLE_STEP].copy()
-
-
-class _Sampled:
-    """The cropped, binned stack seen as a :class:`~voxrender.io.Volume` by :func:`voxrender.object.prep.padding_value`,
-    which reads a few of its slices (``values[::step]``).
-    """
-
-    ndim = 3
-
-    def __init__(self, stack, region, bin):
-        self.stack, self.region, self.bin, self.meta, self.values = stack, region, bin, stack.meta, self
-        self.shape = tuple((r.stop - r.start) // bin if r.stop is not None else n
-                           for r, n in zip(region, stack.shape, strict=True))
-
-    def __getitem__(self, key):
-        return _binned(self.stack, self.region, self.bin, range(*key.indices(self.shape[0])))
-
-
-def _binned(stack, region, bin, numbers):
-    """The cropped, binned slices ``numbers`` (a range) of the stack: ``bin`` canonical slices each, read in one
-    go when they follow one another.
-    """
-    first = region[0].start + numbers.start * bin
-    if numbers.step == 1:
-        values = stack.read_slices(first, first + len(numbers) * bin)
-    else:
-        values = stack.read_numbers([first + k * numbers.step * bin + j for k in range(len(numbers))
-                                     for j in range(bin)])
-    values = values[:, region[1], region[2]]
-    return prep.bin_slices(values, bin) if bin > 1 else values
 
 
 # ------------------------------------------------------------------ the parts
@@ -389,8 +274,10 @@ def encode_part(plan, first, last, folder):
     """
     stack = _open(plan.source, plan.read, plan.token, plan.spool)
     names = ("starts", "ends", "labels", "normal_index", "normal_packed")
+    names += tuple(f"level1.{name}" for name in names) if plan.levels else ()
     files = {name: Path(folder) / f"{first:08d}.{name}" for name in names}
-    rows, normal_count = [], 0
+    rows, normal_count, coarse_rows, coarse_normals = [], 0, [], 0
+    label_voxels = np.zeros(256, np.int64)
     keep_freed_memory()                 # a worker's slabs reuse the pages of the last (ended by _run in this process)
     with _Appender(files) as out:
         for a in range(first, last, plan.slab):
@@ -404,11 +291,62 @@ def encode_part(plan, first, last, folder):
                 runs = segments.encode(own.view(bool))
             rows.append(np.diff(runs.offsets))
             out.add(starts=np.asarray(runs.starts, "<i4"), ends=np.asarray(runs.ends, "<i4"))
+            found = []
             for index, packed in _normals(plan, layers, grey, grey_first, mask_first, a, b):
                 out.add(normal_index=index, normal_packed=packed)
                 normal_count += len(index)
-    return {"first": first, "rows": np.concatenate(rows), "files": {k: str(v) for k, v in files.items()},
-            "normals": normal_count}
+                found.append((index, packed))
+            if plan.levels:
+                if runs.labels is not None:
+                    label_voxels += np.bincount(runs.labels, weights=runs.ends.astype(np.int64) - runs.starts + 1,
+                                                minlength=256).astype(np.int64)
+                coarse, (index, packed) = _coarse_slab(plan, layers, mask_first, a, b, found)
+                coarse_rows.append(np.diff(coarse.offsets))
+                out.add(**{"level1.starts": np.asarray(coarse.starts, "<i4"),
+                           "level1.ends": np.asarray(coarse.ends, "<i4"),
+                           "level1.normal_index": np.asarray(index, f"<i{index.dtype.itemsize}"),
+                           "level1.normal_packed": np.asarray(packed, "<i2").ravel()})
+                if coarse.labels is not None:
+                    out.add(**{"level1.labels": np.asarray(coarse.labels, "<u2")})
+                coarse_normals += len(index)
+    result = {"first": first, "rows": np.concatenate(rows), "files": {k: str(v) for k, v in files.items()},
+              "normals": normal_count}
+    if plan.levels:
+        result.update(coarse_rows=np.concatenate(coarse_rows), coarse_normals=coarse_normals,
+                      label_voxels=label_voxels)
+    return result
+
+
+def _coarse_slab(plan, layers, mask_first, a, b, normals):
+    """The 2 x coarser level of the grid's slices ``a .. b - 1`` (``a`` even; ``b`` too, or the grid's end), as
+    :func:`voxrender.object.levels.coarser` makes it from the whole object: its runs (a :class:`Segments` of the
+    coarse slices), and its normals ``(index, packed)`` from the slab's fine ``normals`` (``(index, packed)``
+    pieces).  ``layers`` hold the grid's slices from ``mask_first`` on, two beside the slab on either side where
+    the grid has them: the coarse slice beside, which decides its surface.
+    """
+    factor, nz = 2, plan.grid[0]
+    lo, hi = max(a - factor, 0), min(b + factor, nz)
+    coarse = _max_binned(layers[lo - mask_first:hi - mask_first], factor)     # coarse slices lo / 2 ..
+    below = lo // factor
+    own = coarse[a // factor - below:-(-b // factor) - below]
+    runs = segments.encode_labels(own) if len(plan.windows) > 1 else segments.encode(own.view(bool))
+    index = np.concatenate([index for index, _ in normals]).astype(np.int64)
+    packed = np.concatenate([packed for _, packed in normals]).reshape(-1, 2)
+    return runs, summed_normals(index, packed, plan.grid, a, b, factor, coarse > 0, below)
+
+
+def _max_binned(layers, factor):
+    """The largest value of each ``factor``³ block of ``layers`` (beyond its edges, zeros): its coarse voxels."""
+    padded = np.zeros(tuple(-(-n // factor) * factor for n in layers.shape), layers.dtype)
+    padded[tuple(slice(0, n) for n in layers.shape)] = layers
+    for axis in range(3):
+        take = [slice(None)] * 3
+        blocks = []
+        for k in range(factor):
+            take[axis] = slice(k, None, factor)
+            blocks.append(padded[tuple(take)])
+        padded = np.maximum.reduce(blocks)
+    return padded
 
 
 def _slab(plan, stack, a, b):
@@ -416,7 +354,8 @@ def _slab(plan, stack, a, b):
     window numbers (uint8 layers), and the grey values they come from: ``(layers, grey, grey_first,
     mask_first)``, the last two being the input (binned) slice and the grid slice the arrays begin at.
     """
-    halo = stencil_radius(plan.normals_from)             # the band needs one slice beside it, the stencil more
+    # the band needs one slice beside it, the stencil more, the coarse surface two (a coarse slice beside)
+    halo = max(stencil_radius(plan.normals_from), 2 if plan.levels else 0)
     mask_first, mask_last = max(0, a - halo), min(plan.grid[0], b + halo)
     nz = (plan.region[0].stop - plan.region[0].start) // plan.bin
     if plan.resampled:
@@ -426,7 +365,7 @@ def _slab(plan, stack, a, b):
         grey_first, grey_last = max(0, lo - 2), min(nz, hi + 4)
     else:
         grey_first, grey_last = mask_first, mask_last
-    grey = _binned(stack, plan.region, plan.bin, range(grey_first, grey_last))
+    grey = binned_slices(stack, plan.region, plan.bin, range(grey_first, grey_last))
     if plan.resampled:
         shifted = _Shifted(grey, grey_first, nz)
         planes = slabs.resample_slices(shifted, plan.binned_spacing, plan.voxel, ks=range(mask_first, mask_last))
@@ -492,8 +431,10 @@ class _Appender:
 
 # ------------------------------------------------------------------ the file
 
-def _write(output, plan, meta, prepare, results, counts):
-    """Write the ``.vxs`` of the parts' files: as :func:`voxrender.object.vxs.save` writes the object in memory."""
+def _write(output, plan, meta, prepare, results, counts, levels=False):
+    """Write the ``.vxs`` of the parts' files: as :func:`voxrender.object.vxs.save` writes the object in memory;
+    with ``levels``, its coarser levels too (:func:`_levels`).
+    """
     offsets = np.zeros(len(counts) + 1, "<i8")
     np.cumsum(counts, out=offsets[1:])
     total = int(offsets[-1])
@@ -516,10 +457,38 @@ def _write(output, plan, meta, prepare, results, counts):
                   normal_packed=spilled("normal_packed", "<i2", 2 * normals))
     meta["normals_from"] = plan.normals_from
     spacing = (plan.voxel,) * 3 if plan.resampled else plan.binned_spacing
+    if levels:
+        vxs.add_levels(meta, arrays, _levels(plan, meta, spacing, results))
     vxs.write_sections(output, plan.grid, spacing, meta, arrays)
     voxels = _voxel_count(arrays["starts"], arrays["ends"])
     return {"shape": plan.grid, "spacing": spacing, "meta": meta, "segment_count": total, "voxel_count": voxels,
             "normal_count": normals}
+
+
+def _levels(plan, meta, spacing, results):
+    """The object's coarser levels, as :func:`voxrender.object.levels.build_levels` makes them from the whole
+    object: the 2 x level from the parts' files (made as the slabs passed), the coarser ones from it.
+    """
+    factor = 2
+    shape = coarse_shape(plan.grid, factor)
+
+    def joined(name, dtype):
+        return np.concatenate([np.fromfile(r["files"][f"level1.{name}"], dtype) for r in results])
+
+    counts = np.concatenate([r["coarse_rows"] for r in results])
+    offsets = np.zeros(len(counts) + 1, np.int64)
+    np.cumsum(counts, out=offsets[1:])
+    labelled = len(plan.windows) > 1
+    voxels = sum(r["label_voxels"] for r in results)
+    own = {int(k): int(voxels[k]) for k in np.flatnonzero(voxels)}
+    level_meta = coarse_meta(meta, factor, (lambda: own) if labelled else None, spacing)
+    index_type = "<i4" if math.prod(shape) < 2 ** 31 else "<i8"
+    normals = SurfaceNormals(shape, joined("normal_index", index_type), joined("normal_packed", "<i2").reshape(-1, 2),
+                             f"{plan.normals_from}, summed over {factor}x{factor}x{factor} voxels")
+    first = segments.Segments(shape, joined("starts", "<i4"), joined("ends", "<i4"), offsets,
+                              tuple(float(s) * factor for s in spacing), level_meta, normals,
+                              joined("labels", "<u2") if labelled else None)
+    return (first,) + build_levels(first, tuple(f // factor for f in FACTORS[1:]))
 
 
 def _chunks(spilled, count=1 << 24):
@@ -570,12 +539,15 @@ def encode_file(path, output, read=None, prepare=None, *, octree=False, levels=F
     streamed = not is_segments_file(path) and _streams(path, read, prepare, max_memory, (jobs or 1) > 1 or scheduler)
     if jobs is None:
         jobs = default_jobs(max_memory) if streamed else 1
-    # the octrees and levels are built from the streamed .vxs, which is kept beside the output only until then
-    added = octree or levels
+    # a streamed stack's levels are made as its slabs pass; the octrees are built from the streamed .vxs, which is
+    # kept beside the output only until then
+    passing = streamed and levels and not octree
+    added = octree or (levels and not passing)
     objects = output.with_name(f".{output.name}.streamed.vxs") if streamed and added else output
     try:
         if streamed:
-            how = encode_stack(path, objects, read, prepare, jobs=jobs, scheduler=scheduler, progress=progress)["how"]
+            how = encode_stack(path, objects, read, prepare, jobs=jobs, scheduler=scheduler, progress=progress,
+                               levels=passing)["how"]
         loaded = load_segments(objects) if streamed else load_segments(path, read, prepare, progress)
         if octree:
             loaded.octree(max_memory)                       # refused here if its build would pass max_memory

@@ -43,14 +43,23 @@ def save(segments, path, sections=None):
     meta = dict(segments.meta)
     if segments.normals is not None:
         meta["normals_from"] = segments.normals.source
-    if segments.levels:
-        meta["levels"] = []
-        for k, level in enumerate(segments.levels, 1):
-            own = {**level.meta, **({"normals_from": level.normals.source} if level.normals is not None else {})}
-            meta["levels"].append({"shape": list(level.shape), "spacing": list(level.spacing),
-                                   "meta": {key: value for key, value in own.items() if meta.get(key) != value}})
-            arrays.update({f"level{k}.{name}": array for name, array in _object_arrays(level).items()})
+    add_levels(meta, arrays, segments.levels)
     write_sections(path, segments.shape, segments.spacing, meta, arrays)
+
+
+def add_levels(meta, arrays, levels):
+    """Add coarser ``levels`` (:mod:`voxrender.object.levels`) to the ``meta`` and ``arrays`` of a file's object:
+    their grids, and what their meta adds to the object's, in ``meta["levels"]``; their arrays named
+    ``level1.starts`` and so on.
+    """
+    if not levels:
+        return
+    meta["levels"] = []
+    for k, level in enumerate(levels, 1):
+        own = {**level.meta, **({"normals_from": level.normals.source} if level.normals is not None else {})}
+        meta["levels"].append({"shape": list(level.shape), "spacing": list(level.spacing),
+                               "meta": {key: value for key, value in own.items() if meta.get(key) != value}})
+        arrays.update({f"level{k}.{name}": array for name, array in _object_arrays(level).items()})
 
 
 def _object_arrays(segments):
