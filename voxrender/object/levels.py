@@ -259,8 +259,12 @@ def summed_normals(fine, packed, shape, first, last, factor, solid, below):
     local = (z // factor * cny + y // factor) * cnx + x // factor - base
     cells = (top - bottom) * cny * cnx
     present = np.flatnonzero(np.bincount(local, minlength=cells))
+    # each fine voxel's place among the cells present: the sums below are then as long as those, not the grid
+    place = np.zeros(cells, np.int32 if len(present) < 2 ** 31 else np.int64)
+    place[present] = np.arange(len(present))
+    place = place[local]
     unit = octahedral_decode(packed)
-    total = np.stack([np.bincount(local, weights=unit[:, k], minlength=cells)[present] for k in range(3)], axis=1)
+    total = np.stack([np.bincount(place, weights=unit[:, k], minlength=len(present)) for k in range(3)], axis=1)
     length = np.sqrt(np.einsum("nk,nk->n", total, total))
     surface = (surface_band(solid) & solid)[bottom - below:top - below].reshape(-1)    # beside: the neighbours
     kept = (length > 1e-6) & surface[present]

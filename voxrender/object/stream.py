@@ -337,16 +337,19 @@ def _coarse_slab(plan, layers, mask_first, a, b, normals):
 
 def _max_binned(layers, factor):
     """The largest value of each ``factor``³ block of ``layers`` (beyond its edges, zeros): its coarse voxels."""
-    padded = np.zeros(tuple(-(-n // factor) * factor for n in layers.shape), layers.dtype)
-    padded[tuple(slice(0, n) for n in layers.shape)] = layers
+    coarse = layers
+    if any(n % factor for n in layers.shape):
+        coarse = np.zeros(tuple(-(-n // factor) * factor for n in layers.shape), layers.dtype)
+        coarse[tuple(slice(0, n) for n in layers.shape)] = layers
     for axis in range(3):
         take = [slice(None)] * 3
-        blocks = []
-        for k in range(factor):
+        take[axis] = slice(0, None, factor)
+        largest = coarse[tuple(take)].copy()
+        for k in range(1, factor):
             take[axis] = slice(k, None, factor)
-            blocks.append(padded[tuple(take)])
-        padded = np.maximum.reduce(blocks)
-    return padded
+            np.maximum(largest, coarse[tuple(take)], out=largest)
+        coarse = largest
+    return coarse
 
 
 def _slab(plan, stack, a, b):
