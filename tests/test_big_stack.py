@@ -113,12 +113,12 @@ def test_the_side_the_disk_holds(cache, monkeypatch):
 def test_the_section_end_to_end(cache):
     result = big_stack.bench_big_stack(side=32, drop_caches=False)
     rows = {row["name"]: row for row in result["rows"]}
-    assert list(rows) == ["cat", "encode", "encode --bin 2", "encode --jobs 1", "ftb 1024^2", "encode --levels",
-                          "ftb 1024^2, levels", "ftb 512^2, levels"]
+    assert list(rows) == ["cat", "encode", "encode --bin 2", "encode --jobs 1", "ftb 1024^2", "encode STACK --levels",
+                          "encode --levels", "ftb 1024^2, levels", "ftb 512^2, levels"]
     assert rows["encode --levels"]["growth"] > 1 and set(rows["ftb 512^2, levels"]["targets"]) == {
         "<= 2 s", "RSS <= 1 GB"}
     # --bin and --jobs may not exist yet: recorded, not asserted
-    for name in ("cat", "encode", "ftb 1024^2", "encode --levels", "ftb 512^2, levels"):
+    for name in ("cat", "encode", "ftb 1024^2", "encode STACK --levels", "encode --levels", "ftb 512^2, levels"):
         assert rows[name]["ok"], rows[name]["error"]
         assert rows[name]["seconds"] > 0 and rows[name]["cache"] == "not dropped (asked)"
     assert rows["encode"]["ratio_to_cat"] > 0
