@@ -377,3 +377,26 @@ def test_encode_with_levels_streams_them_once_on_workers_too(tmp_path, monkeypat
         assert how and asked.pop() is True and len(streamed.segments.levels) == 3
         assert (tmp_path / f"streamed-{jobs}.vxs").read_bytes() == (tmp_path / "memory.vxs").read_bytes()
     assert len(memory.segments.levels) == 3 and not list(tmp_path.glob(".*"))
+
+
+def test_only_the_encodes_own_workers_keep_the_memory_their_slabs_free(tmp_path, monkeypatch):
+    """Worker processes of the encode's own pool keep freed memory for their next slab; a Dask cluster's workers,
+    which go on to serve other work, are not changed."""
+    from voxrender._shared import executors
+    from voxrender.object import stream
+
+    np.save(tmp_path / "v.npy", porous())
+    kept = []
+
+    class Recording(executors._Inline):
+        def submit(self, fn, *args):
+            kept.append(args[-1])
+            return super().submit(fn, *args)
+
+    monkeypatch.setattr(executors, "executor", lambda jobs, scheduler: Recording())
+    monkeypatch.setattr(stream, "keep_freed_memory", lambda: None)          # this test's own process is left alone
+    for scheduler, expected in [(None, True), ("tcp://cluster:8786", False)]:
+        encode_stack(tmp_path / "v.npy", tmp_path / "o.vxs", ReadOptions(), PrepOptions(threshold=1000), jobs=2,
+                     scheduler=scheduler, slab_voxels=4 * SHAPE[1] * SHAPE[2])
+        assert kept and set(kept) == {expected}
+        kept.clear()

@@ -258,7 +258,9 @@ def _run(plan, parts, folder, jobs, scheduler, progress, stack):
         return results
     pool = executor(jobs, scheduler)
     try:
-        futures = {pool.submit(encode_part, plan, a, b, str(folder)): n for n, (a, b) in enumerate(parts)}
+        # this encode's own workers keep the memory their slabs free; a Dask cluster's serve others after it
+        futures = {pool.submit(encode_part, plan, a, b, str(folder), not scheduler): n
+                   for n, (a, b) in enumerate(parts)}
         results = [None] * len(parts)
         for future in pool.as_completed(list(futures)):      # as they end on the workers
             results[futures[future]] = future.result()
@@ -268,9 +270,11 @@ def _run(plan, parts, folder, jobs, scheduler, progress, stack):
         pool.close()
 
 
-def encode_part(plan, first, last, folder):
+def encode_part(plan, first, last, folder, keep_memory=True):
     """Encode the grid's slices ``first .. last - 1`` of a :class:`Plan`, a slab at a time, into files in
-    ``folder``: their runs, labels and normals.  Returns the runs each row has and the files.
+    ``folder``: their runs, labels and normals.  Returns the runs each row has and the files.  With
+    ``keep_memory``, the process keeps the memory its slabs free from then on, for the next slab
+    (:func:`~voxrender._shared.memory.keep_freed_memory`).
     """
     stack = _open(plan.source, plan.read, plan.token, plan.spool)
     names = ("starts", "ends", "labels", "normal_index", "normal_packed")
@@ -278,7 +282,8 @@ def encode_part(plan, first, last, folder):
     files = {name: Path(folder) / f"{first:08d}.{name}" for name in names}
     rows, normal_count, coarse_rows, coarse_normals = [], 0, [], 0
     label_voxels = np.zeros(256, np.int64)
-    keep_freed_memory()                 # a worker's slabs reuse the pages of the last (ended by _run in this process)
+    if keep_memory:                     # in this process, _run gives the memory back when the encode ends
+        keep_freed_memory()
     with _Appender(files) as out:
         for a in range(first, last, plan.slab):
             b = min(a + plan.slab, last)
