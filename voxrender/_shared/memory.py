@@ -32,7 +32,6 @@ def free_memory():
     return free if free is not None else 1 << 62
 
 
-
 # glibc's mallopt parameters, and their defaults (malloc.h)
 _M_TRIM_THRESHOLD, _M_MMAP_MAX = -1, -4
 _DEFAULT_TRIM_THRESHOLD, _DEFAULT_MMAP_MAX = 128 * 1024, 65536

@@ -64,8 +64,8 @@ def _octahedral(n):
 
 
 def _octahedral_of(x, y, z):
-    """:func:`octahedral_encode` of vectors given as their x, y and z (float64 arrays, each contiguous: a pass
-    over a column is several times faster than one across the rows of ``(N, 3)``), in this thread.
+    """:func:`octahedral_encode` of vectors given as their x, y and z (float64 arrays: passes over contiguous
+    columns are several times faster than across the rows of ``(N, 3)``), in this thread.
     """
     scale = np.maximum((np.abs(x) + np.abs(y)) + np.abs(z), 1e-30)       # summed as np.sum sums a row of 3
     x, y, z = x / scale, y / scale, z / scale
@@ -445,26 +445,26 @@ def _gradient_on_grid(grid, voxels, smooth, derive):
     spanned = (int(z.max()) - int(z.min()) + 1) * ny * nx if len(z) else 0       # the slices the band is in
     if radius == 1 and _exact_in_float32(grid) and 8 * len(x) > spanned:
         return _dense_sobel_at(grid, voxels, smooth, derive).T.copy()
-    gradient = np.zeros((3, len(x)))
+    gradient = np.empty((3, len(x)))
     inner = (x >= radius) & (x < nx - radius)
-    if not inner.all():
+    every_inner = bool(inner.all())
+    if not every_inner:
         gradient[:, ~inner] = _gradient_of_samples(_edge_sampler(grid), np.stack([x, y, z], axis=1)[~inner],
                                                    *_stencil(radius, smooth, derive)).T
-    z, y, x = z[inner], y[inner], x[inner]
+        z, y, x = z[inner], y[inner], x[inner]
     if not len(x):                  # rows shorter than the stencil (a volume one or two voxels wide in x)
         return gradient
     # whole numbers with whole weights (a Sobel kernel on integers of 16 bits or fewer) are summed in int32:
     # exactly, as float64 sums them, at half the memory traffic; a chunk at a time, whose sums stay in the cache
     kind = np.int32 if radius == 1 and _exact_in_float32(grid) else np.float64
-    found = np.empty((3, len(x)))
+    found = gradient if every_inner else np.empty((3, len(x)))
 
     def sums(a, b):
         found[:, a:b] = _separable_sums(grid, z[a:b], y[a:b], x[a:b], smooth, derive, kind)
 
     _in_chunks(sums, len(x))
-    if inner.all():
-        return found
-    gradient[:, inner] = found
+    if not every_inner:
+        gradient[:, inner] = found
     return gradient
 
 
