@@ -234,37 +234,37 @@ def _small(keys):
     return keys.astype(np.int16) if len(keys) and 0 <= keys.min() and keys.max() < 1 << 15 else keys
 
 
-def _merge_order(line, span_row, span_first):
-    """The order the spans are merged in, each span's call (numbered by scanline, then in reading order) and
-    the call's rank: how many rows reached its scanline before it.
+def _merge_order(line, counts):
+    """The order of the MERGE calls' spans: the calls are ``(row, scanline)``, given in reading order (the rows
+    as they are read, a row's scanlines rising) by their scanline ``line`` and how many spans each holds
+    (``counts``, each above 0), their spans given one call's after another.
 
-    A MERGE call is one (row, scanline).  The merges of one scanline depend on each other only, in the order
-    the rows are read, so the calls of one rank (distinct scanlines, of any slab) run together: as many
-    batches as the busiest scanline has calls.  The spans come in run order, which is (slab, row, x) order, and
-    leave in (rank, scanline, walk order) order, ties (within a call) in run order.
+    Returns per span, in merge order: its place among the spans given, its scanline, its call (numbered by
+    scanline, then in reading order) and the call's rank, how many rows reached its scanline before it.  The
+    merges of one scanline depend on each other only, in the order the rows are read, so the calls of one
+    rank (distinct scanlines, of any slab) run together: as many batches as the busiest scanline has calls.
+    The spans leave in (rank, scanline) order, a call's in the order they came.  The order is found for the
+    calls, not the spans: a row's runs make one call on each scanline they cross.
     """
     if not len(line):
-        return (np.zeros(0, np.int64),) * 3
-    order = np.argsort(_small(line), kind="stable")          # (line, slab, row, run) order
-    counts = np.bincount(line)                               # (scanlines from 0: the lines sorted, without a gather)
-    line, span_row, span_first = np.repeat(np.arange(len(counts)), counts), span_row[order], span_first[order]
-    line_start = np.concatenate([[True], line[1:] != line[:-1]])
-    call_start = line_start | np.concatenate([[False], span_row[1:] != span_row[:-1]])
-    call = np.cumsum(call_start) - 1
-    rank = call - np.maximum.accumulate(np.where(line_start, call, 0))
-    if _in_walk_order(span_first, call_start):
-        then = np.argsort(_small(rank), kind="stable")
-    else:
-        then = _stable_order(rank, line, span_first)
-    return order[then], call[then], rank[then]
+        return (np.zeros(0, np.int64),) * 4
+    by_line = np.argsort(_small(line), kind="stable")            # the calls in (scanline, reading) order
+    line_of_call = line[by_line]
+    starts = np.flatnonzero(np.concatenate([[True], line_of_call[1:] != line_of_call[:-1]]))
+    rank = np.arange(len(line)) - np.repeat(starts, np.diff(np.append(starts, len(line))))
+    merged = np.argsort(_small(rank), kind="stable")             # calls by number, in (rank, scanline) order
+    spans = counts[by_line][merged]
+    first = np.cumsum(counts) - counts
+    return (ranges(first[by_line][merged], spans), np.repeat(line_of_call[merged], spans),
+            np.repeat(merged, spans), np.repeat(rank[merged], spans))
 
 
-def _in_walk_order(span_first, call_start):
+def _in_walk_order(span_first, call):
     """Whether every call's spans, in run order, start in walk order: a row's runs are read in walk order, so
-    their spans on a scanline come sorted (ordering by rank alone then keeps each call in walk order), unless
-    rounding puts a span a column before the one read before it (a view with ``R00`` next to nothing).
+    their spans on a scanline come sorted, unless rounding puts a span a column before the one read before it
+    (a view with ``R00`` next to nothing).
     """
-    return not np.any((span_first[1:] < span_first[:-1]) & ~call_start[1:])
+    return not np.any((span_first[1:] < span_first[:-1]) & (call[1:] == call[:-1]))
 
 
 def _merge_layout(line, rank, key_first, key_last, stride):
@@ -529,17 +529,22 @@ def _slab_spans(segments, plan, clip, outer, stride):
     row_first = np.flatnonzero(np.concatenate([[True], row[1:] != row[:-1]])) if len(row) else row
     line_first, line_last = plan.scanlines(yc[row_first])
     lines = np.maximum(line_last - line_first + 1, 0)
-    row_line, row_of = ranges(line_first, lines, owners=True)
+    row_line, row_of = ranges(line_first, lines, owners=True)     # the calls (row, scanline), in reading order
     left, right, empty = plan.reach(row_line, yc[row_first][row_of])
     runs_of_row = np.diff(np.append(row_first, len(row)))
-    place, run = ranges(np.repeat(np.cumsum(lines) - lines, runs_of_row), np.repeat(lines, runs_of_row), owners=True)
-    line = row_line[place]
-    span_first, span_last = plan.columns(xc[run], half_x[run], left[place], right[place], empty[place])
+    # the spans call by call: a row's runs on each of its scanlines in turn
+    run, call = ranges(row_first[row_of], runs_of_row[row_of], owners=True)
+    span_first, span_last = plan.columns(xc[run], half_x[run], left[call], right[call], empty[call])
     keep = span_first <= span_last
-    line, run, span_first, span_last = line[keep], run[keep], span_first[keep], span_last[keep]
-
-    order, call, rank = _merge_order(line, row[run], span_first)
-    line, run, span_first, span_last = line[order], run[order], span_first[order], span_last[order]
+    run, call, span_first, span_last = run[keep], call[keep], span_first[keep], span_last[keep]
+    counts = np.bincount(call, minlength=len(row_line))
+    made = counts > 0                                    # a call whose spans all miss the pixels is not made
+    order, line, call, rank = _merge_order(row_line[made], counts[made])
+    run, span_first, span_last = run[order], span_first[order], span_last[order]
+    if not _in_walk_order(span_first, call):
+        order = _stable_order(rank, line, span_first)
+        line, run, call, rank, span_first, span_last = (a[order] for a in (line, run, call, rank, span_first,
+                                                                            span_last))
     key_first, key_last = line * stride + span_first + 1, line * stride + span_last + 1
     return _Spans(slab, row, z, y, starts, ends, xc, yc, zc, half_x, line, run, call, rank, key_first, key_last)
 
