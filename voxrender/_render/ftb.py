@@ -269,13 +269,12 @@ def _in_walk_order(span_first, call):
 
 def _merge_layout(line, rank, key_first, key_last, stride):
     """What the batches of :func:`_merge_all` search with: the bounds of the batches, each span's call (numbered
-    in merge order), ``M`` and the first key it may paint, and the keys searched for, one row per kind.
+    in merge order), ``M`` and the first key it may paint, whether it paints past ``M``, and the keys searched
+    for in the unlit starts ``lo``: its first key and the key after its last.
 
     The spans are in merge order; a batch is one rank.  Within a call (one scanline of one batch) ``M``, the
     largest end of the call's earlier spans (its scanline's start before the first), depends on the spans
-    only, and so do the keys searched for: in the unlit starts ``lo`` the span's reach (the key after its end;
-    its scanline's start when ``M`` covers it, so that it paints nothing), its first key and its scanline's
-    end; in the unlit ends ``hi`` its first and last keys, the key after the last and its scanline's start.
+    only, and so does what is searched for.
     """
     base = line * stride
     step_start = np.concatenate([[True], rank[1:] != rank[:-1]])
@@ -286,11 +285,10 @@ def _merge_layout(line, rank, key_first, key_last, stride):
     # pick by a mask costs here ten times a sum)
     before = np.maximum(base, np.concatenate([[0], np.maximum.accumulate(key_last + lift)[:-1]]) - lift)
     paint_lo = np.maximum(key_first, before + 1)
-    reach = base + 1 + (paint_lo <= key_last) * (key_last - base)
-    lo_keys = np.stack([reach, key_first])
-    hi_keys = np.stack([key_first, key_last])
+    keys = np.stack([key_first, key_last + 1])
     call_base = base[first]                                # a call's scanline, searched once for all its spans
-    return np.flatnonzero(np.concatenate([step_start, [True]])), call, before, paint_lo, lo_keys, hi_keys, call_base
+    return (np.flatnonzero(np.concatenate([step_start, [True]])), call, before, paint_lo, paint_lo <= key_last, keys,
+            call_base)
 
 
 def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
@@ -314,15 +312,14 @@ def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
     """
     if not len(line):
         return np.zeros(9, np.int64), np.zeros(0, np.int64), None, lo, hi
-    bounds, call, before, paint_lo, lo_keys, hi_keys, call_base = _merge_layout(line, rank, key_first, key_last,
-                                                                                 stride)
+    bounds, call, before, paint_lo, paints, keys, call_base = _merge_layout(line, rank, key_first, key_last, stride)
     # (counts of segments: int32 holds them, at half the memory of a group's many spans)
     found_lo, found_hi = np.empty((3, len(line)), np.int32), np.empty((4, len(line)), np.int32)
     pointer = np.empty(len(line), np.int32)
     spans, pieces_lo, pieces_hi = [], [], []
     for s in range(len(bounds) - 1):
         a, b = bounds[s], bounds[s + 1]
-        on_lo, on_hi = _batch_searches(lo, hi, lo_keys[:, a:b], hi_keys[:, a:b], call[a:b], call_base, stride)
+        on_lo, on_hi = _batch_searches(lo, hi, keys[:, a:b], paints[a:b], call[a:b], call_base, stride)
         # the first unlit segment ending after M: the one after M's own, or the scanline's first
         np.maximum(on_hi[3], np.concatenate([[0], np.maximum.accumulate(on_hi[2])[:-1]]), out=pointer[a:b])
         paint_from = np.maximum(on_hi[0], pointer[a:b])
@@ -342,7 +339,7 @@ def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
         pieces_lo.append(piece_lo)
         pieces_hi.append(piece_hi)
 
-    del lo_keys, hi_keys
+    del keys
     # Per span, how many unlit segments (as its batch found them) start: at most at its end (at most at its
     # scanline's start when M covers it), before its first key, before the next scanline; and end: before its
     # first key, before its last, at most at its last, before its scanline.
@@ -370,21 +367,31 @@ def _merge_all(lo, hi, line, rank, key_first, key_last, stride):
     return counts, scan_end - scan_start, painted, lo, hi
 
 
-def _batch_searches(lo, hi, lo_keys, hi_keys, call, call_base, stride):
-    """Where a batch's keys fall among the unlit starts ``lo`` and ends ``hi``: in ``lo``, each span's reach, its
-    first key and its scanline's end; in ``hi``, its first and last keys, the key after its last and its
-    scanline's start (the rows of :func:`_merge_layout`'s keys, and two per scanline, each searched once for
-    the spans of its call; the key after the last is the last's place, one on when ``hi`` holds the last).
+def _batch_searches(lo, hi, keys, paints, call, call_base, stride):
+    """Where a batch's spans fall among the unlit starts ``lo`` and ends ``hi``: in ``lo``, each span's reach (the
+    key after its last when it ``paints``, else its scanline's start), its first key and its scanline's end; in
+    ``hi``, its first and last keys, the key after the last and its scanline's start.
+
+    Only ``lo`` is searched, for the ``keys`` (each span's first key and the key after its last) and, once per
+    call, its scanline's bounds.  The places in ``hi`` follow: the unlit segments are at least one key apart,
+    so of those that start before a key all but the last end before it too.
     """
     on_lo, on_hi = np.empty((3, len(call)), np.int64), np.empty((4, len(call)), np.int64)
-    on_lo[:2], on_hi[:2] = np.searchsorted(lo, lo_keys), np.searchsorted(hi, hi_keys)
+    first_in, last_in = np.searchsorted(lo, keys)          # starts before the first key; at most at the last
     own = call - call[0]                                   # the batch's calls are numbered one after another
     bases = call_base[call[0]:call[-1] + 1]
     on_lo[2] = np.searchsorted(lo, bases + stride)[own]
     on_hi[3] = np.searchsorted(hi, bases)[own]
-    on_hi[2] = on_hi[1]
-    if len(hi):
-        on_hi[2] += hi[np.minimum(on_hi[1], len(hi) - 1)] == hi_keys[1]
+    on_lo[0] = np.where(paints, last_in, on_hi[3])         # (no segment starts on a scanline before its start)
+    on_lo[1] = first_in
+    if not len(hi):
+        on_hi[:3] = 0
+        return on_lo, on_hi
+    key_first, after = keys
+    on_hi[0] = first_in - ((first_in > 0) & (hi[first_in - 1] >= key_first))
+    end = hi[last_in - 1]                                  # (at 0, hi[-1]: not counted)
+    on_hi[1] = last_in - ((last_in > 0) & (end >= after - 1))
+    on_hi[2] = last_in - ((last_in > 0) & (end >= after))
     return on_lo, on_hi
 
 
