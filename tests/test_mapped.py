@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from voxrender._shared import mapped
+from voxrender.errors import InputError
 from voxrender.object import segments, vxs
 
 
@@ -49,3 +50,26 @@ def test_a_mapped_object_saved_again_is_copied_from_its_file_the_same(tmp_path, 
     vxs.save(loaded, tmp_path / "again.vxs")
     vxs.save(encoded, tmp_path / "memory.vxs")
     assert (tmp_path / "again.vxs").read_bytes() == (tmp_path / "memory.vxs").read_bytes()
+
+
+def test_block_reads_give_a_mapped_array_whole_in_blocks_with_their_overlap(tmp_path):
+    values = np.arange(10, dtype=np.int32)
+    values.tofile(tmp_path / "v.bin")
+    on_file = np.memmap(tmp_path / "v.bin", np.int32, "r")[2:]
+    reads = mapped.block_reads(on_file, overlap=1, count=3)
+    assert [read().tolist() for read in reads] == [[2, 3, 4, 5], [5, 6, 7, 8], [8, 9]]
+    assert [read().tolist() for read in mapped.block_reads(values[2:], count=3)] == [list(range(2, 10))]
+
+
+def test_a_file_whose_runs_leave_their_grid_in_a_later_block_is_damaged(tmp_path, monkeypatch):
+    """The runs are checked a block at a time on threads: a bad run past the first block is found too."""
+    mask = np.zeros((4, 5, 6), bool)
+    mask[:, :, 1:4] = True
+    vxs.save(segments.encode(mask), tmp_path / "o.vxs")
+    ends = vxs.load(tmp_path / "o.vxs").ends
+    with open(tmp_path / "o.vxs", "r+b") as file:        # the last run's end set past the grid's last column
+        file.seek(mapped.file_span(ends)[1] + ends.itemsize * (len(ends) - 1))
+        file.write(np.array([6], ends.dtype).tobytes())
+    monkeypatch.setattr(vxs, "block_reads", lambda array, overlap=0: mapped.block_reads(array, overlap, count=4))
+    with pytest.raises(InputError, match="runs leave their grid"):
+        vxs.load(tmp_path / "o.vxs")

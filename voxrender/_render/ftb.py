@@ -204,7 +204,7 @@ def _front_to_back_runs(segments, plan, clip, outer=slice(None)):
     index = offsets[rows][owner] + rank
     starts = np.asarray(segments.starts[index], np.int64)        # only these runs are read from a mapped file
     ends = np.asarray(segments.ends[index], np.int64)
-    run_z, run_y = rows[owner] // ny, rows[owner] % ny
+    run_z, run_y = (rows // ny)[owner], (rows % ny)[owner]      # (divided once a row, not once a run)
     if clip is not None and clip.active:
         keep, starts, ends = clip.apply_runs(run_z, run_y, starts, ends, plan.view, segments.shape)
         owner, run_z, run_y, starts, ends = owner[keep], run_z[keep], run_y[keep], starts[keep], ends[keep]

@@ -18,15 +18,31 @@ def blocks(array, overlap=0, count=1 << 24):
         yield read_mapped(array, first, first + count + overlap)
 
 
+def block_reads(array, overlap=0, count=1 << 22):
+    """The blocks of :func:`blocks`, each as a function that reads it: blocks read where they are used, on threads
+    (:func:`~voxrender._shared.threads.on_threads`), each thread reading its own.
+    """
+    if not is_mapped(array) or not array.size:
+        return [lambda: np.asarray(array)]
+    return [lambda first=first: read_mapped(array, first, first + count + overlap)
+            for first in range(0, array.size, count)]
+
+
 def is_mapped(array):
     """Whether ``array`` is a view of a memory-mapped file."""
     return _mapping(array) is not None
 
 
 def _mapping(array):
-    while array is not None and not isinstance(array, np.memmap):
+    """The memory map ``array`` is a view of, or ``None``: the last ``np.memmap`` down its bases, the one that holds
+    the mapping (a slice of a memmap is a memmap too, but keeps the offset of the one it was cut from).
+    """
+    found = None
+    while array is not None:
+        if isinstance(array, np.memmap):
+            found = array
         array = getattr(array, "base", None)
-    return array
+    return found
 
 
 def prefetch(*arrays):

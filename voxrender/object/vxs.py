@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .._shared.files import atomic_output
-from .._shared.mapped import blocks, file_span
+from .._shared.mapped import block_reads, blocks, file_span
 from .._shared.threads import on_threads
 from ..errors import InputError
 from .normals import SurfaceNormals
@@ -248,12 +248,12 @@ def _object_of(shape, spacing, meta, arrays, path, deferred=False):
     if (offsets.size != shape[0] * shape[1] + 1 or offsets[0] != 0 or starts.size != offsets[-1]
             or ends.size != starts.size or np.any(offsets[1:] < offsets[:-1])):
         raise _damaged(path, "index and runs disagree")
-    def off_grid(pair):
-        first, last = pair
+    def off_grid(reads):                 # (read on the thread that checks them)
+        first, last = (read() for read in reads)
         return bool(first.size and (first.min() < 0 or last.max() >= shape[2] or np.any(first > last)))
 
     def check_runs():
-        if any(on_threads(off_grid, zip(blocks(starts), blocks(ends), strict=True))):
+        if any(on_threads(off_grid, zip(block_reads(starts), block_reads(ends), strict=True))):
             raise _damaged(path, "runs leave their grid")
 
     if not deferred:
@@ -265,7 +265,8 @@ def _object_of(shape, spacing, meta, arrays, path, deferred=False):
             raise _damaged(path, "surface normals and their voxels disagree")
 
         def check_rising():         # read whole, so checked when first used: a picture of a level needs not
-            if not all(np.all(block[1:] > block[:-1]) for block in blocks(index, 1)):
+            if not all(on_threads(lambda read: bool(np.all((block := read())[1:] > block[:-1])),
+                                  block_reads(index, 1))):
                 raise _damaged(path, "surface normals and their voxels disagree")
 
         normals = SurfaceNormals(shape, index, packed.reshape(-1, 2), str(meta.get("normals_from", "grey values")),
