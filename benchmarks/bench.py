@@ -46,7 +46,7 @@ from pathlib import Path
 import click
 import numpy as np
 
-from benchmarks import big_stack, compile_bytecode, median_seconds, studies
+from benchmarks import big_stack, compile_bytecode, median_seconds, studies, targets
 from benchmarks.agreement import bench_agreement
 from benchmarks.index_page import bench_index_browser, bench_index_page
 from benchmarks.masks import bench_mask_folder
@@ -226,8 +226,9 @@ class VtkMipPeer(VtkPeer):
         self._finish(prop)
 
 
-PROJECTION_VIEWS = {"anterior": (90.0, 0.0, 0.0), "oblique (30, 10)": (30.0, 10.0, 0.0),
-                    f"random {RANDOM_VIEWS[0]}": (*RANDOM_VIEWS[0], 0.0)}
+# the axis, and the six views of the render table (issue 35: the MIP at most VTK's at all six)
+PROJECTION_VIEWS = {"anterior": (90.0, 0.0, 0.0),
+                    **{f"({alpha:g}, {beta:g})": (alpha, beta, 0.0) for alpha, beta in PAPER_VIEWS + RANDOM_VIEWS}}
 
 
 def bench_projection(values, repeat, peer=None, size=512, scale=1.0, views=PROJECTION_VIEWS):
@@ -695,6 +696,7 @@ def markdown(results):
         lines += big_stack.markdown_lines(results["big_stack"])
     if results.get("studies"):
         lines += studies.markdown_lines(results["studies"])
+    lines[1:1] = targets.markdown_lines(results)
     return "\n".join(lines)
 
 
@@ -797,6 +799,7 @@ def run(data, repeat, scaling_sizes=SCALING_SIZES, pipeline=True, big=True):
                                    repeat),
             "octree_files": bench_octree_files(encoded, repeat),
             "octree_build": bench_octree_build(encoded),
+            "commands": targets.bench_commands(data, repeat),
             "big_stack": big_stack.bench_big_stack() if big else {"skipped": "left out (--no-big-stack)",
                                                                         "rows": []},
             "studies": studies.run(data, min(repeat, 3)),

@@ -218,3 +218,36 @@ def test_index_browser_section_runs_small():
     result = bench_index_browser(studies=150, batch=3, repeat=1)
     assert result["studies"] == 150 and result["rows_s"] > 0 and result["batch"]["turns"] == 6
     assert "| j pressed 200 times through Playwright |" in "\n".join(_index_browser_lines(result))
+
+
+def test_issue_35_targets_table_from_fake_results():
+    from benchmarks import targets
+
+    big = [{"name": "ftb 1024^2, levels", "command": "render 1024", "seconds": 4.2, "peak_mb": 950.0, "ok": True},
+           {"name": "ftb 512^2, levels", "command": "render 512", "seconds": 2.1, "peak_mb": 450.0, "ok": True},
+           {"name": "encode", "command": "encode STACK", "seconds": 90.0, "peak_mb": 700.0, "ok": True,
+            "ratio_to_cat": 3.6}]
+    commands = {"repeat": 1, "seconds": {"surface": 1.5, "mip": 1.6, "encode": 3.0, "encode --octree": 5.5,
+                                         "import voxrender.cli": 0.2},
+                "commands": {name: name for name in ("surface", "mip", "encode", "encode --octree",
+                                                     "import voxrender.cli")}}
+    views = [{"alpha": 30.0, "beta": 10.0, "seconds": {"ftb": 0.05, "vtk": 0.2}},
+             {"alpha": 60.0, "beta": 120.0, "seconds": {"ftb": 0.09, "vtk": 0.15}}]
+    results = {"big_stack": {"rows": big}, "commands": commands, "views": views,
+               "projection": {"rows": [{"view": "anterior", "ratio": 0.3}, {"view": "(30, 10)", "ratio": 1.2}]},
+               "studies": {"studies": {"rows": {"jobs 2": {"per_minute": 150.0}, "vtk": {"per_minute": 50.0}}}},
+               "raycast": {"vhf_head 300 HU": {"rows": {"adaptive": {"seconds": 0.7}}}}}
+    met = {(item, target): ok for item, _, _, target, ok in targets.target_rows(results)}
+    assert met == {("1: a picture from the levels", "<= 5 s in <= 1 GB"): True,
+                   ("1: a picture from the levels", "<= 2 s in <= 1 GB"): False,
+                   ("2: the big encode", "<= 3 x cat"): False,
+                   ("3: the projection command", "<= 1.1 x"): True,          # 1.6 / 1.5
+                   ("3: the MIP render against VTK's MIP", "<= 1 x at every view"): False,
+                   ("4: `encode --octree`", "<= 2 s over"): False,            # 2.5 s over
+                   ("5: ftb against VTK", "<= 0.5 x"): False,                 # 0.6 at (60, 120)
+                   ("5: the batch against VTK", ">= 3 x"): True,
+                   ("5: ray casting against VTK", "<= 4 x"): True,            # 0.7 / 0.2
+                   ("5: the start", "no slower (0.22 s on 2026-12-03)"): None}
+    table = "\n".join(targets.markdown_lines(results))
+    assert "| 4: `encode --octree` | `encode --octree` against `encode` (the head stacked four times) | " \
+           "5.50 - 3.00 = +2.50 s | <= 2 s over | missed |" in table
