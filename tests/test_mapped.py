@@ -73,3 +73,23 @@ def test_a_file_whose_runs_leave_their_grid_in_a_later_block_is_damaged(tmp_path
     monkeypatch.setattr(vxs, "block_reads", lambda array, overlap=0: mapped.block_reads(array, overlap, count=4))
     with pytest.raises(InputError, match="runs leave their grid"):
         vxs.load(tmp_path / "o.vxs")
+
+
+def test_search_mapped_searches_in_the_arrays_own_type_and_finds_what_numpy_finds(tmp_path, monkeypatch):
+    """NumPy searches int64 values in an int32 array by copying the whole array to int64 first (454 MB for the big
+    stack's level 1, for each search): the values are searched as int32, those out of its range placed at the ends.
+    """
+    rng = np.random.default_rng(5)
+    index = np.unique(rng.integers(-1000, 1000, 300)).astype(np.int32)
+    index.tofile(tmp_path / "i.bin")
+    on_file = np.memmap(tmp_path / "i.bin", np.int32, "r")
+    values = np.concatenate([rng.integers(-1200, 1200, 200), [-2 ** 40, 2 ** 40, index[0], index[-1]]])
+    expected = np.searchsorted(index.astype(np.int64), values)
+    searched = []
+    numpy_search = np.searchsorted
+    monkeypatch.setattr(np, "searchsorted", lambda a, v, *args: searched.append((np.asarray(a).dtype,
+                                                                                np.asarray(v).dtype))
+                        or numpy_search(a, v, *args))
+    for array in (index, on_file):
+        assert mapped.search_mapped(array, values, block=16).tolist() == expected.tolist()
+    assert searched and all(pair == (np.int32, np.int32) for pair in searched)
