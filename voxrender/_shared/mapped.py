@@ -11,11 +11,8 @@ def blocks(array, overlap=0, count=1 << 24):
     """The values of an array a block at a time (:func:`read_mapped`: a file's are read from it, not through its
     mapping), each block with the first ``overlap`` values of the next.
     """
-    if not is_mapped(array) or not array.size:
-        yield np.asarray(array)
-        return
-    for first in range(0, array.size, count):
-        yield read_mapped(array, first, first + count + overlap)
+    for read in block_reads(array, overlap, count):
+        yield read()
 
 
 def block_reads(array, overlap=0, count=1 << 22):

@@ -264,9 +264,12 @@ def _object_of(shape, spacing, meta, arrays, path, deferred=False):
         if packed.size != 2 * index.size or index.size and (index[0] < 0 or index[-1] >= math.prod(shape)):
             raise _damaged(path, "surface normals and their voxels disagree")
 
+        def rising(read):                # (read on the thread that checks it, with the next block's first)
+            block = read()
+            return bool(np.all(block[1:] > block[:-1]))
+
         def check_rising():         # read whole, so checked when first used: a picture of a level needs not
-            if not all(on_threads(lambda read: bool(np.all((block := read())[1:] > block[:-1])),
-                                  block_reads(index, 1))):
+            if not all(on_threads(rising, block_reads(index, 1))):
                 raise _damaged(path, "surface normals and their voxels disagree")
 
         normals = SurfaceNormals(shape, index, packed.reshape(-1, 2), str(meta.get("normals_from", "grey values")),
